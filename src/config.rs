@@ -1,0 +1,259 @@
+//! Configuration: one TOML file with a section per stage, validated once at
+//! start-up into plain values that size every buffer.
+//!
+//! Every key has a default (`stature config --print-defaults` prints the
+//! documented defaults file, `config/defaults.toml`, which a test keeps
+//! identical to [`Config::default`]). Command-line options override the
+//! file. Unknown keys, bad types and out-of-range values are refused with
+//! one line naming the key, the value and the accepted range.
+
+use core::fmt;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A configuration value that cannot be used.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConfigError {
+    /// Dotted key, e.g. `detect.history`.
+    pub key: String,
+    /// The offending value as written.
+    pub value: String,
+    /// What would have been accepted, e.g. `an integer in 10..=100000`.
+    pub expected: String,
+}
+
+impl ConfigError {
+    /// Builds an error for `key` = `value`, expecting `expected`.
+    pub fn new(key: &str, value: impl fmt::Display, expected: impl fmt::Display) -> Self {
+        ConfigError {
+            key: key.into(),
+            value: value.to_string(),
+            expected: expected.to_string(),
+        }
+    }
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "config key `{}` = {}: expected {}",
+            self.key, self.value, self.expected
+        )
+    }
+}
+impl std::error::Error for ConfigError {}
+
+/// Checks that `value` lies in `range`, naming `key` otherwise.
+pub fn check_range<T>(
+    key: &str,
+    value: T,
+    range: core::ops::RangeInclusive<T>,
+) -> Result<(), ConfigError>
+where
+    T: PartialOrd + fmt::Display + Copy,
+{
+    if range.contains(&value) {
+        Ok(())
+    } else {
+        Err(ConfigError::new(
+            key,
+            value,
+            format_args!("a value in {}..={}", range.start(), range.end()),
+        ))
+    }
+}
+
+/// The whole configuration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// Where frames come from.
+    pub source: SourceConfig,
+    /// Where records go.
+    pub report: ReportConfig,
+    /// Loop limits and persistence.
+    pub run: RunConfig,
+    /// Background model and regions.
+    pub detect: crate::detect::DetectConfig,
+    /// Region classifier.
+    pub classify: crate::classify::ClassifyConfig,
+    /// Person tracker.
+    pub track: crate::track::TrackConfig,
+    /// Self-calibration.
+    pub calibrate: crate::calibrate::CalibrateConfig,
+    /// Height measurement.
+    pub measure: crate::measure::MeasureConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            source: SourceConfig::default(),
+            report: ReportConfig::default(),
+            run: RunConfig::default(),
+            detect: Default::default(),
+            classify: Default::default(),
+            track: Default::default(),
+            calibrate: Default::default(),
+            measure: Default::default(),
+        }
+    }
+}
+
+/// `[source]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SourceConfig {
+    /// Frame source: `sim:NAME?seed=N`, `y4m:PATH`, `y4m:-` or `v4l2:/dev/videoN?...`.
+    pub uri: String,
+}
+
+impl Default for SourceConfig {
+    fn default() -> Self {
+        SourceConfig {
+            uri: "sim:plaza?seed=1".into(),
+        }
+    }
+}
+
+/// Record encoding on every sink.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// JSON Lines, one object per line (per datagram on UDP).
+    Json,
+    /// postcard-encoded records, COBS-framed (zero byte ends each record).
+    Postcard,
+}
+
+/// `[report]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ReportConfig {
+    /// Sinks: `stdout`, `file:PATH`, `udp:HOST:PORT`, `serial:/dev/ttyX?baud=N`.
+    pub sinks: Vec<String>,
+    /// Encoding of every record.
+    pub format: Format,
+    /// Records the queue between the vision loop and the I/O thread holds.
+    pub queue: usize,
+    /// Final records held back by the loop while the queue is full.
+    pub held_finals: usize,
+    /// Seconds of stream time between `status` records.
+    pub status_interval_s: f64,
+}
+
+impl Default for ReportConfig {
+    fn default() -> Self {
+        ReportConfig {
+            sinks: vec!["stdout".into()],
+            format: Format::Json,
+            queue: 256,
+            held_finals: 64,
+            status_interval_s: 5.0,
+        }
+    }
+}
+
+/// `[run]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    /// Stop after this many frames (0 = until the source ends).
+    pub frames: u64,
+    /// Calibration state file (empty = none).
+    pub state: String,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig {
+            frames: 0,
+            state: String::new(),
+        }
+    }
+}
+
+impl Config {
+    /// Parses TOML text; unknown keys and bad types are errors.
+    pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
+        let cfg: Config = toml::from_str(text).map_err(|e| {
+            let msg = e.message().to_string();
+            ConfigError::new("(file)", "", msg)
+        })?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Reads and parses a TOML file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ConfigError::new(
+                "--config",
+                path.display(),
+                format_args!("a readable TOML file ({e})"),
+            )
+        })?;
+        Self::from_toml(&text).map_err(|mut e| {
+            if e.key == "(file)" {
+                e.key = path.display().to_string();
+            }
+            e
+        })
+    }
+
+    /// Checks every value against its accepted range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.source.uri.is_empty() {
+            return Err(ConfigError::new(
+                "source.uri",
+                "\"\"",
+                "a source such as sim:plaza or y4m:PATH",
+            ));
+        }
+        check_range("report.queue", self.report.queue, 4..=65536)?;
+        check_range("report.held_finals", self.report.held_finals, 1..=65536)?;
+        check_range(
+            "report.status_interval_s",
+            self.report.status_interval_s,
+            0.1..=3600.0,
+        )?;
+        for s in &self.report.sinks {
+            crate::report::sink::SinkSpec::parse(s)
+                .map_err(|e| ConfigError::new("report.sinks", s, e))?;
+        }
+        self.detect.validate()?;
+        self.classify.validate()?;
+        self.track.validate()?;
+        self.calibrate.validate()?;
+        self.measure.validate()?;
+        Ok(())
+    }
+}
+
+/// The documented defaults file printed by `stature config --print-defaults`.
+pub const DEFAULTS_TOML: &str = include_str!("../config/defaults.toml");
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn documented_defaults_are_the_real_defaults() {
+        let parsed = Config::from_toml(DEFAULTS_TOML).expect("defaults file parses");
+        assert_eq!(parsed, Config::default());
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = Config::from_toml("[report]\nqueue_size = 3\n").unwrap_err();
+        assert!(e.to_string().contains("queue_size"), "{e}");
+    }
+
+    #[test]
+    fn out_of_range_names_key_and_range() {
+        let e = Config::from_toml("[report]\nqueue = 1\n").unwrap_err();
+        assert_eq!(e.key, "report.queue");
+        assert!(e.to_string().contains("4..=65536"), "{e}");
+    }
+}

@@ -1,0 +1,64 @@
+//! # stature
+//!
+//! Firmware-style software for smart cameras: it watches a scene, finds
+//! walking people, calibrates the camera from them (no checkerboard, no
+//! installer measurements) and reports every person's height.
+//!
+//! It implements Jung, Yoon, Lee & Paik, "Object Detection and
+//! Tracking-Based Camera Calibration for Normalized Human Height
+//! Estimation" (J. Sensors 2016). The modules follow the data flow:
+//!
+//! ```text
+//! source → detect → classify → track → calibrate → measure → report
+//! ```
+//!
+//! * [`source`]: frames from a Y4M file or pipe, a V4L2 camera, or the
+//!   built-in simulated scene, always as Y/U/V planes (chroma 4:2:0).
+//! * [`detect`]: fixed-point Gaussian-mixture background model and
+//!   connected foreground regions.
+//! * [`classify`]: HOG-LBP features and a linear SVM, single person vs. not.
+//! * [`track`]: small particle filters that follow people.
+//! * [`calibrate`]: vanishing point, horizon, focal length, tilt, roll and
+//!   camera height from the tracked people.
+//! * [`measure`]: per-person heights with robust correction.
+//! * [`report`]: schema v1 records and the sinks that carry them.
+//! * [`run`]: the loop that owns every buffer and calls the stages in order.
+//!
+//! After start-up the loop allocates nothing: every buffer is sized from the
+//! [`config::Config`] when the [`run::Pipeline`] is built.
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod alloc_count;
+pub mod camera;
+pub mod config;
+pub mod frame;
+pub mod logger;
+
+pub mod source;
+
+pub mod detect;
+
+pub mod classify;
+
+pub mod track;
+
+pub mod calibrate;
+
+pub mod measure;
+
+pub mod report;
+
+pub mod run;
+
+/// Process exit codes, shared by the binary and documented in the README.
+pub mod exit {
+    /// Clean end of stream or requested frame count reached.
+    pub const OK: i32 = 0;
+    /// Internal failure (should not happen; a bug report is welcome).
+    pub const INTERNAL: i32 = 1;
+    /// Bad input: unreadable or malformed config, frames or weights.
+    pub const BAD_INPUT: i32 = 2;
+    /// A resource could not be opened (device, sink, state file directory).
+    pub const UNAVAILABLE: i32 = 3;
+}

@@ -1,0 +1,16 @@
+//! Stage `measure` (built by its own issue).
+
+use crate::config::ConfigError;
+use serde::{Deserialize, Serialize};
+
+/// `[measure]`
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MeasureConfig {}
+
+impl MeasureConfig {
+    /// Checks every value against its accepted range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        Ok(())
+    }
+}

@@ -1,0 +1,259 @@
+//! Reports: schema v1 records, their encodings, the sinks, and the bounded
+//! queue that keeps slow links away from the vision loop.
+//!
+//! The loop hands records to a [`Reporter`] (never blocking). One I/O thread
+//! ([`spawn_io`]) drains the queue, encodes each record once into a fixed
+//! buffer and writes it to every sink. When the queue is full the oldest
+//! non-final record is dropped and counted; final records (hello, bye, final
+//! calibration, final heights) are held back by the loop and retried.
+
+pub mod encode;
+pub mod record;
+pub mod sink;
+
+use crate::config::Format;
+use crossbeam_channel::{bounded, Receiver, Sender, TryRecvError, TrySendError};
+use record::Record;
+use sink::Sink;
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+/// Counters shared by the loop and the I/O thread.
+#[derive(Debug, Default)]
+pub struct Counters {
+    /// Records dropped because the queue was full.
+    pub dropped_queue: AtomicU64,
+    /// Record deliveries that failed at a sink (one per sink per record).
+    pub dropped_sink: AtomicU64,
+    /// Records written to at least one sink.
+    pub delivered: AtomicU64,
+}
+
+impl Counters {
+    /// All drops so far.
+    pub fn dropped(&self) -> u64 {
+        self.dropped_queue.load(Ordering::Relaxed) + self.dropped_sink.load(Ordering::Relaxed)
+    }
+}
+
+/// The loop's end of the report queue.
+pub struct Reporter {
+    tx: Sender<Record>,
+    /// A receiver clone: lets the loop evict the oldest record when full.
+    evict: Receiver<Record>,
+    held: VecDeque<Record>,
+    held_capacity: usize,
+    counters: Arc<Counters>,
+}
+
+impl Reporter {
+    /// A queue of `capacity` records, holding up to `held_finals` final
+    /// records while it is full. Returns the reporter and the I/O end.
+    pub fn new(capacity: usize, held_finals: usize) -> (Reporter, Receiver<Record>, Arc<Counters>) {
+        let (tx, rx) = bounded(capacity);
+        let counters = Arc::new(Counters::default());
+        let r = Reporter {
+            tx,
+            evict: rx.clone(),
+            held: VecDeque::with_capacity(held_finals),
+            held_capacity: held_finals,
+            counters: counters.clone(),
+        };
+        (r, rx, counters)
+    }
+
+    /// Shared counters.
+    pub fn counters(&self) -> &Arc<Counters> {
+        &self.counters
+    }
+
+    /// Queues a record without blocking (held finals go first).
+    pub fn send(&mut self, record: Record) {
+        self.retry_held();
+        if !self.held.is_empty() {
+            self.enqueue_blocked(record);
+            return;
+        }
+        if let Err(TrySendError::Full(record)) = self.tx.try_send(record) {
+            self.enqueue_blocked(record);
+        }
+    }
+
+    /// Tries to move held final records into the queue.
+    fn retry_held(&mut self) {
+        while let Some(r) = self.held.pop_front() {
+            match self.tx.try_send(r) {
+                Ok(()) => {}
+                Err(TrySendError::Full(r)) | Err(TrySendError::Disconnected(r)) => {
+                    self.held.push_front(r);
+                    break;
+                }
+            }
+        }
+    }
+
+    /// The queue is full: make room by evicting the oldest non-final record.
+    fn enqueue_blocked(&mut self, record: Record) {
+        // Evict one queued record; a final one moves to the held list instead.
+        match self.evict.try_recv() {
+            Ok(old) if old.is_final() => self.hold(old),
+            Ok(_) => {
+                self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => {}
+        }
+        if record.is_final() || !self.held.is_empty() {
+            if record.is_final() {
+                self.hold(record);
+            } else {
+                self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
+            }
+            self.retry_held();
+            return;
+        }
+        if self.tx.try_send(record).is_err() {
+            self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    fn hold(&mut self, record: Record) {
+        if self.held.len() < self.held_capacity {
+            self.held.push_back(record);
+        } else {
+            self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// End of run: waits (bounded) until held records are queued, then closes the queue.
+    pub fn finish(mut self, timeout: std::time::Duration) {
+        let deadline = std::time::Instant::now() + timeout;
+        while !self.held.is_empty() && std::time::Instant::now() < deadline {
+            self.retry_held();
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        self.counters
+            .dropped_queue
+            .fetch_add(self.held.len() as u64, Ordering::Relaxed);
+    }
+}
+
+/// Starts the I/O thread writing every record from `rx` to every sink.
+/// The thread ends when the queue is closed and drained.
+pub fn spawn_io(
+    rx: Receiver<Record>,
+    mut sinks: Vec<Sink>,
+    format: Format,
+    counters: Arc<Counters>,
+) -> std::thread::JoinHandle<()> {
+    std::thread::Builder::new()
+        .name("stature-io".into())
+        .spawn(move || {
+            let mut buf = [0u8; encode::MAX_RECORD];
+            let mut failures = vec![0u64; sinks.len()];
+            let mut deliver = |record: Record, sinks: &mut Vec<Sink>| {
+                let bytes = match encode::encode(&record, format, &mut buf) {
+                    Ok(b) => b,
+                    Err(e) => {
+                        log::error!("report: {} record not encoded: {e}", record.kind());
+                        counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
+                        return;
+                    }
+                };
+                let mut any = false;
+                for (sink, fails) in sinks.iter_mut().zip(failures.iter_mut()) {
+                    match sink.write_record(bytes) {
+                        Ok(()) => any = true,
+                        Err(e) => {
+                            *fails += 1;
+                            counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
+                            // Log the first failure and then every 100th, not each one.
+                            if *fails == 1 || *fails % 100 == 0 {
+                                log::warn!(
+                                    "report: {} sink: {e} ({} records lost there)",
+                                    sink.name(),
+                                    fails
+                                );
+                            }
+                        }
+                    }
+                }
+                if any {
+                    counters.delivered.fetch_add(1, Ordering::Relaxed);
+                }
+            };
+            while let Ok(record) = rx.recv() {
+                deliver(record, &mut sinks);
+                while let Ok(record) = rx.try_recv() {
+                    deliver(record, &mut sinks);
+                }
+                for s in sinks.iter_mut() {
+                    let _ = s.flush();
+                }
+            }
+            for s in sinks.iter_mut() {
+                if let Err(e) = s.flush() {
+                    log::warn!("report: {} sink: final flush failed: {e}", s.name());
+                }
+            }
+        })
+        .expect("spawning the I/O thread at start-up")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::record::{bounded, Height, Status};
+    use super::*;
+
+    fn status(frame: u64) -> Record {
+        Record::Status(Status {
+            frame,
+            frames: frame,
+            fps: 0.0,
+            dropped: 0,
+            source: bounded("streaming"),
+            allocations: 0,
+            tracks: 0,
+        })
+    }
+    fn final_height(frame: u64) -> Record {
+        Record::Height(Height {
+            frame,
+            track_id: 1,
+            height_m: 1.7,
+            samples: 3,
+            foot_px: [0.0; 2],
+            head_px: [0.0; 2],
+            bbox: [0; 4],
+            is_final: true,
+        })
+    }
+
+    #[test]
+    fn full_queue_drops_oldest_non_final_and_keeps_finals() {
+        let (mut rep, rx, counters) = Reporter::new(4, 8);
+        rep.send(final_height(0));
+        for f in 1..10 {
+            rep.send(status(f));
+        }
+        rep.send(final_height(10));
+        let mut got: Vec<Record> = rx.try_iter().collect();
+        let frames: Vec<u64> = got
+            .iter()
+            .map(|r| match r {
+                Record::Status(s) => s.frame,
+                Record::Height(h) => h.frame,
+                _ => 99,
+            })
+            .collect();
+        // The newest statuses are kept over the oldest.
+        assert!(frames.contains(&9), "{frames:?}");
+        assert!(!frames.contains(&1), "{frames:?}");
+        // Finals evicted or refused while full are held, then queued once room appears.
+        rep.send(status(11));
+        got.extend(rx.try_iter());
+        assert!(got.contains(&final_height(0)), "first final lost");
+        assert!(got.contains(&final_height(10)), "second final lost");
+        assert!(counters.dropped_queue.load(Ordering::Relaxed) >= 6);
+    }
+}

@@ -1,0 +1,174 @@
+//! Frame sources: every source fills a caller-owned [`Frame`] in place.
+//!
+//! * `y4m:PATH`, `y4m:-`: recorded frames (the host-test path).
+//! * `v4l2:/dev/videoN?width=W&height=H&fps=F&format=YUYV|NV12|GREY`: a camera.
+//! * `sim:NAME?seed=N&frames=N`: the built-in simulated scene.
+
+use crate::frame::{Frame, Size};
+use core::fmt;
+
+pub mod convert;
+pub mod sim;
+pub mod v4l2;
+pub mod y4m;
+
+/// What a source produces, known once it is open.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SourceInfo {
+    /// Frame size.
+    pub size: Size,
+    /// Frames per second as a fraction (numerator, denominator).
+    pub fps: (u32, u32),
+    /// Human-readable description for the `hello` record.
+    pub description: String,
+}
+
+impl SourceInfo {
+    /// Frames per second as a float (0 when unknown).
+    pub fn fps_f64(&self) -> f64 {
+        if self.fps.1 == 0 {
+            0.0
+        } else {
+            f64::from(self.fps.0) / f64::from(self.fps.1)
+        }
+    }
+}
+
+/// The outcome of asking a source for a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Next {
+    /// The frame was filled.
+    Frame,
+    /// No frame now (a camera is reconnecting); ask again.
+    Waiting,
+    /// The stream ended cleanly.
+    End,
+}
+
+/// Source health, reported in `status` records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SourceState {
+    /// Delivering frames.
+    Streaming,
+    /// Lost; trying to reopen.
+    Reconnecting,
+    /// Ended.
+    Ended,
+}
+
+impl SourceState {
+    /// Name used in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SourceState::Streaming => "streaming",
+            SourceState::Reconnecting => "reconnecting",
+            SourceState::Ended => "ended",
+        }
+    }
+}
+
+/// Why a source failed.
+#[derive(Debug)]
+pub enum SourceError {
+    /// The source text is not understood.
+    Spec(String),
+    /// The file, pipe or device could not be opened.
+    Open {
+        /// What was being opened.
+        what: String,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// The stream is malformed.
+    Format {
+        /// 0-based frame number where it went wrong (header: 0).
+        frame: u64,
+        /// Byte offset in the stream.
+        offset: u64,
+        /// What is wrong.
+        what: String,
+    },
+    /// Reading failed.
+    Io {
+        /// 0-based frame being read.
+        frame: u64,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// This build lacks the source (e.g. `v4l2` feature off).
+    Unsupported(&'static str),
+}
+
+impl SourceError {
+    /// Exit code for this error (see [`crate::exit`]).
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            SourceError::Open { .. } | SourceError::Unsupported(_) => crate::exit::UNAVAILABLE,
+            _ => crate::exit::BAD_INPUT,
+        }
+    }
+}
+
+impl fmt::Display for SourceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SourceError::Spec(s) => write!(f, "bad source: {s}"),
+            SourceError::Open { what, error } => write!(f, "cannot open {what}: {error}"),
+            SourceError::Format {
+                frame,
+                offset,
+                what,
+            } => {
+                write!(
+                    f,
+                    "malformed stream at frame {frame}, byte offset {offset}: {what}"
+                )
+            }
+            SourceError::Io { frame, error } => write!(f, "read error at frame {frame}: {error}"),
+            SourceError::Unsupported(s) => write!(f, "{s}"),
+        }
+    }
+}
+impl std::error::Error for SourceError {}
+
+/// A producer of frames.
+pub trait FrameSource {
+    /// Size, rate and description.
+    fn info(&self) -> &SourceInfo;
+    /// Fills `frame` with the next frame. `frame` must have the size from [`Self::info`].
+    fn next_frame(&mut self, frame: &mut Frame) -> Result<Next, SourceError>;
+    /// Current health.
+    fn state(&self) -> SourceState {
+        SourceState::Streaming
+    }
+}
+
+/// Splits `scheme:rest?k=v&k=v` into its parts.
+pub fn split_uri(uri: &str) -> Option<(&str, &str, &str)> {
+    let (scheme, rest) = uri.split_once(':').unwrap_or((uri, ""));
+    let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
+    (!scheme.is_empty()).then_some((scheme, path, query))
+}
+
+/// Iterates `k=v` pairs of a query string.
+pub fn query_pairs(query: &str) -> impl Iterator<Item = (&str, &str)> {
+    query
+        .split('&')
+        .filter(|p| !p.is_empty())
+        .map(|p| p.split_once('=').unwrap_or((p, "")))
+}
+
+/// Opens the source named by `uri`.
+pub fn open(uri: &str) -> Result<Box<dyn FrameSource + Send>, SourceError> {
+    let (scheme, path, query) =
+        split_uri(uri).ok_or_else(|| SourceError::Spec(format!("`{uri}`: expected SCHEME:...")))?;
+    match scheme {
+        "y4m" if query.is_empty() => Ok(Box::new(y4m::Y4mSource::open(path)?)),
+        "y4m" => Err(SourceError::Spec(format!("`{uri}`: y4m takes no options"))),
+        "v4l2" => Ok(Box::new(v4l2::V4l2Source::open(path, query)?)),
+        "sim" => Ok(Box::new(sim::SimSource::open(path, query)?)),
+        _ => Err(SourceError::Spec(format!(
+            "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
+        ))),
+    }
+}

@@ -1,0 +1,416 @@
+//! YUV4MPEG2 (Y4M) reader: 8-bit 4:2:0, 4:2:2, 4:4:4 and mono streams.
+//!
+//! The stream header is `YUV4MPEG2` followed by space-separated tags
+//! (`W`, `H`, `F`, `I`, `A`, `C`, `X…`) and a newline; each frame is `FRAME`
+//! (with optional tags) and a newline, then the planes. Frames are turned
+//! into 4:2:0 planes on the way in; every buffer is allocated at open.
+
+use super::{convert, FrameSource, Next, SourceError, SourceInfo};
+use crate::frame::{Frame, Size};
+use std::io::{self, BufRead, BufReader, Read};
+
+/// Longest header or frame-header line accepted, in bytes.
+const MAX_LINE: usize = 4096;
+/// Largest frame dimension accepted (keeps buffer sizes sane on bad input).
+const MAX_DIM: usize = 16384;
+
+/// Chroma layout of the stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chroma {
+    /// 4:2:0 (any siting: `420jpeg`, `420mpeg2`, `420paldv`, `420`).
+    C420,
+    /// 4:2:2, chroma half width, full height.
+    C422,
+    /// 4:4:4, chroma full size.
+    C444,
+    /// Luma only.
+    Mono,
+}
+
+impl Chroma {
+    fn parse(tag: &str) -> Option<Chroma> {
+        Some(match tag {
+            "420" | "420jpeg" | "420mpeg2" | "420paldv" => Chroma::C420,
+            "422" => Chroma::C422,
+            "444" => Chroma::C444,
+            "mono" => Chroma::Mono,
+            _ => return None,
+        })
+    }
+    /// Bytes of one frame's payload in this layout.
+    pub fn frame_bytes(self, size: Size) -> usize {
+        let luma = size.pixels();
+        match self {
+            Chroma::C420 => luma + 2 * size.chroma().pixels(),
+            Chroma::C422 => luma + 2 * size.width.div_ceil(2) * size.height,
+            Chroma::C444 => 3 * luma,
+            Chroma::Mono => luma,
+        }
+    }
+}
+
+/// A parsed stream header.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Header {
+    /// Frame size.
+    pub size: Size,
+    /// Frame rate (numerator, denominator); (0, 0) when absent.
+    pub fps: (u32, u32),
+    /// Chroma layout.
+    pub chroma: Chroma,
+    /// Interlacing tag as written (`p`, `t`, `b`, `m`, `?`), if any.
+    pub interlace: Option<char>,
+}
+
+impl Header {
+    /// Parses the header line (without its newline).
+    pub fn parse(line: &[u8]) -> Result<Header, String> {
+        let text = std::str::from_utf8(line).map_err(|_| "header is not ASCII".to_string())?;
+        let mut parts = text.split(' ').filter(|p| !p.is_empty());
+        if parts.next() != Some("YUV4MPEG2") {
+            return Err("missing YUV4MPEG2 signature".into());
+        }
+        let (mut w, mut h, mut fps, mut chroma, mut interlace) =
+            (None, None, (0, 0), Chroma::C420, None);
+        for tag in parts {
+            let (key, val) = tag.split_at(1);
+            match key {
+                "W" => w = Some(parse_dim(val, "width")?),
+                "H" => h = Some(parse_dim(val, "height")?),
+                "F" => fps = parse_ratio(val).ok_or_else(|| format!("bad frame rate tag `F{val}`"))?,
+                "A" => {
+                    parse_ratio(val).ok_or_else(|| format!("bad aspect tag `A{val}`"))?;
+                }
+                "I" => {
+                    let c = val.chars().next().filter(|c| "ptbm?".contains(*c) && val.len() == 1);
+                    interlace = Some(c.ok_or_else(|| format!("bad interlace tag `I{val}`"))?);
+                }
+                "C" => {
+                    chroma = Chroma::parse(val).ok_or_else(|| {
+                        format!("unsupported colour space `C{val}` (supported: 420jpeg, 420mpeg2, 420paldv, 420, 422, 444, mono; 8-bit only)")
+                    })?
+                }
+                "X" => {}
+                _ => return Err(format!("unknown header tag `{tag}`")),
+            }
+        }
+        let size = Size {
+            width: w.ok_or("header has no width (W)")?,
+            height: h.ok_or("header has no height (H)")?,
+        };
+        Ok(Header {
+            size,
+            fps,
+            chroma,
+            interlace,
+        })
+    }
+}
+
+fn parse_dim(val: &str, what: &str) -> Result<usize, String> {
+    match val.parse::<usize>() {
+        Ok(n) if (2..=MAX_DIM).contains(&n) => Ok(n),
+        _ => Err(format!("bad {what} `{val}` (expected 2..={MAX_DIM})")),
+    }
+}
+
+fn parse_ratio(val: &str) -> Option<(u32, u32)> {
+    let (n, d) = val.split_once(':')?;
+    Some((n.parse().ok()?, d.parse().ok()?))
+}
+
+/// Reads Y4M frames from a file or standard input.
+pub struct Y4mSource {
+    reader: Box<dyn BufRead + Send>,
+    header: Header,
+    info: SourceInfo,
+    /// Raw frame payload when it is not already 4:2:0.
+    scratch: Vec<u8>,
+    line: Vec<u8>,
+    offset: u64,
+    frames: u64,
+    ended: bool,
+}
+
+impl Y4mSource {
+    /// Opens `path` (`-` for standard input) and reads its header.
+    pub fn open(path: &str) -> Result<Self, SourceError> {
+        let (reader, name): (Box<dyn Read + Send>, String) = if path == "-" {
+            (Box::new(io::stdin()), "y4m:- (stdin)".into())
+        } else {
+            let f = std::fs::File::open(path).map_err(|error| SourceError::Open {
+                what: format!("Y4M file `{path}`"),
+                error,
+            })?;
+            (Box::new(f), format!("y4m:{path}"))
+        };
+        Self::from_reader(reader, name)
+    }
+
+    /// Reads the header from any reader; `name` describes it in reports.
+    pub fn from_reader(reader: Box<dyn Read + Send>, name: String) -> Result<Self, SourceError> {
+        let mut reader: Box<dyn BufRead + Send> =
+            Box::new(BufReader::with_capacity(1 << 16, reader));
+        let mut line = Vec::with_capacity(MAX_LINE);
+        let n = read_line(&mut reader, &mut line)
+            .map_err(|error| SourceError::Io { frame: 0, error })?;
+        if n == 0 {
+            return Err(SourceError::Format {
+                frame: 0,
+                offset: 0,
+                what: "empty stream (no Y4M header)".into(),
+            });
+        }
+        if line.last() != Some(&b'\n') {
+            return Err(SourceError::Format {
+                frame: 0,
+                offset: n as u64,
+                what: "header line not terminated".into(),
+            });
+        }
+        let header = Header::parse(&line[..n - 1]).map_err(|what| SourceError::Format {
+            frame: 0,
+            offset: 0,
+            what,
+        })?;
+        let scratch = if header.chroma == Chroma::C420 {
+            Vec::new()
+        } else {
+            vec![0; header.chroma.frame_bytes(header.size)]
+        };
+        let info = SourceInfo {
+            size: header.size,
+            fps: if header.fps.1 == 0 {
+                (0, 1)
+            } else {
+                header.fps
+            },
+            description: format!(
+                "{name} {}x{} {:?}",
+                header.size.width, header.size.height, header.chroma
+            ),
+        };
+        Ok(Y4mSource {
+            reader,
+            header,
+            info,
+            scratch,
+            line,
+            offset: n as u64,
+            frames: 0,
+            ended: false,
+        })
+    }
+
+    /// The parsed stream header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    fn fail(&self, what: String) -> SourceError {
+        SourceError::Format {
+            frame: self.frames,
+            offset: self.offset,
+            what,
+        }
+    }
+}
+
+/// Reads up to and including `\n`, at most [`MAX_LINE`] bytes; returns the count.
+fn read_line(r: &mut dyn BufRead, line: &mut Vec<u8>) -> io::Result<usize> {
+    line.clear();
+    r.take(MAX_LINE as u64).read_until(b'\n', line)
+}
+
+/// Reads exactly `buf.len()` bytes; returns how many arrived before end of stream.
+fn read_full(r: &mut dyn Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+impl FrameSource for Y4mSource {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn next_frame(&mut self, frame: &mut Frame) -> Result<Next, SourceError> {
+        if self.ended {
+            return Ok(Next::End);
+        }
+        let io_err = |frames, error| SourceError::Io {
+            frame: frames,
+            error,
+        };
+        let n = read_line(&mut self.reader, &mut self.line).map_err(|e| io_err(self.frames, e))?;
+        if n == 0 {
+            self.ended = true;
+            return Ok(Next::End);
+        }
+        if !self.line.starts_with(b"FRAME") || !matches!(self.line.get(5), Some(b' ' | b'\n')) {
+            let shown: String = self
+                .line
+                .iter()
+                .take(16)
+                .map(|&b| if b.is_ascii_graphic() { b as char } else { '.' })
+                .collect();
+            return Err(self.fail(format!("expected `FRAME` marker, found `{shown}`")));
+        }
+        if self.line.last() != Some(&b'\n') {
+            return Err(self.fail("frame header line not terminated".into()));
+        }
+        self.offset += n as u64;
+        let size = self.header.size;
+        if frame.size() != size {
+            return Err(self.fail(format!(
+                "frame buffer is {:?}, stream is {:?}",
+                frame.size(),
+                size
+            )));
+        }
+        let expected = self.header.chroma.frame_bytes(size);
+        let got = if self.header.chroma == Chroma::C420 {
+            let mut got = 0;
+            for plane in [&mut frame.y, &mut frame.u, &mut frame.v] {
+                let n = read_full(&mut self.reader, plane).map_err(|e| io_err(self.frames, e))?;
+                got += n;
+                if n < plane.len() {
+                    break;
+                }
+            }
+            got
+        } else {
+            read_full(&mut self.reader, &mut self.scratch).map_err(|e| io_err(self.frames, e))?
+        };
+        if got < expected {
+            self.ended = true;
+            return Err(self.fail(format!("truncated frame: {got} of {expected} bytes")));
+        }
+        match self.header.chroma {
+            Chroma::C420 => {}
+            Chroma::C422 => convert::planar422_to_420(&self.scratch, size, frame),
+            Chroma::C444 => convert::planar444_to_420(&self.scratch, size, frame),
+            Chroma::Mono => convert::grey_to_420(&self.scratch, size, frame),
+        }
+        self.offset += expected as u64;
+        frame.index = self.frames;
+        self.frames += 1;
+        Ok(Next::Frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stream(header: &str, frames: &[Vec<u8>]) -> Vec<u8> {
+        let mut s = header.as_bytes().to_vec();
+        for f in frames {
+            s.extend_from_slice(b"FRAME\n");
+            s.extend_from_slice(f);
+        }
+        s
+    }
+
+    fn source(bytes: Vec<u8>) -> Result<Y4mSource, SourceError> {
+        Y4mSource::from_reader(Box::new(io::Cursor::new(bytes)), "test".into())
+    }
+
+    #[test]
+    fn reads_420jpeg_with_x_tag() {
+        let payload: Vec<u8> = (0..4 * 2 + 2 * 2 * 1).map(|i| i as u8).collect();
+        let mut s = source(stream(
+            "YUV4MPEG2 W4 H2 F10:1 Ip A0:0 C420jpeg XYSCSS=420JPEG\n",
+            &[payload.clone(), payload],
+        ))
+        .unwrap();
+        assert_eq!(
+            s.info().size,
+            Size {
+                width: 4,
+                height: 2
+            }
+        );
+        assert_eq!(s.info().fps, (10, 1));
+        let mut f = Frame::new(s.info().size);
+        assert_eq!(s.next_frame(&mut f).unwrap(), Next::Frame);
+        assert_eq!(f.y, (0..8).collect::<Vec<u8>>());
+        assert_eq!(f.u, vec![8, 9]);
+        assert_eq!(f.v, vec![10, 11]);
+        assert_eq!(s.next_frame(&mut f).unwrap(), Next::Frame);
+        assert_eq!(f.index, 1);
+        assert_eq!(s.next_frame(&mut f).unwrap(), Next::End);
+    }
+
+    #[test]
+    fn reads_444_and_mono_as_420() {
+        let mut p = vec![50u8; 4];
+        p.extend([10, 20, 30, 40]); // U: averages to 25
+        p.extend([200; 4]);
+        let mut s = source(stream("YUV4MPEG2 W2 H2 C444\n", &[p])).unwrap();
+        let mut f = Frame::new(s.info().size);
+        s.next_frame(&mut f).unwrap();
+        assert_eq!((f.u[0], f.v[0]), (25, 200));
+        let mut s = source(stream("YUV4MPEG2 W2 H2 Cmono\n", &[vec![7; 4]])).unwrap();
+        s.next_frame(&mut f).unwrap();
+        assert_eq!((f.y[3], f.u[0]), (7, 128));
+    }
+
+    #[test]
+    fn truncated_frame_names_frame_and_offset() {
+        let mut bytes = stream("YUV4MPEG2 W4 H2\n", &[vec![0; 12]]);
+        bytes.extend_from_slice(b"FRAME\n\x01\x02");
+        let mut s = source(bytes).unwrap();
+        let mut f = Frame::new(s.info().size);
+        s.next_frame(&mut f).unwrap();
+        let e = s.next_frame(&mut f).unwrap_err().to_string();
+        assert!(
+            e.contains("frame 1") && e.contains("offset 40") && e.contains("truncated"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn garbage_between_frames_is_reported() {
+        let mut bytes = stream("YUV4MPEG2 W4 H2\n", &[vec![0; 12]]);
+        bytes.extend_from_slice(b"JUNKJUNK\n");
+        let mut s = source(bytes).unwrap();
+        let mut f = Frame::new(s.info().size);
+        s.next_frame(&mut f).unwrap();
+        let e = s.next_frame(&mut f).unwrap_err().to_string();
+        assert!(
+            e.contains("expected `FRAME`") && e.contains("JUNKJUNK"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn bad_headers_are_refused_with_reasons() {
+        for (h, want) in [
+            ("YUV4MPEG W4 H2\n", "signature"),
+            ("YUV4MPEG2 H2\n", "width"),
+            ("YUV4MPEG2 W4 H0\n", "height"),
+            ("YUV4MPEG2 W4 H2 C420p10\n", "420p10"),
+            ("YUV4MPEG2 W4 H2 Fx\n", "frame rate"),
+            ("YUV4MPEG2 W4 H2 Q1\n", "unknown header tag"),
+            ("YUV4MPEG2 W4 H2", "not terminated"),
+            ("", "empty"),
+        ] {
+            let e = source(h.as_bytes().to_vec()).err().expect(h).to_string();
+            assert!(e.contains(want), "{h:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn missing_file_is_an_open_error() {
+        let e = Y4mSource::open("/nonexistent/clip.y4m").err().unwrap();
+        assert_eq!(e.exit_code(), crate::exit::UNAVAILABLE);
+    }
+}
