@@ -32,6 +32,7 @@
 pub mod alloc_count;
 pub mod camera;
 pub mod config;
+pub mod dataset;
 pub mod frame;
 pub mod logger;
 
