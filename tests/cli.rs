@@ -169,7 +169,7 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
         (
             vec!["--source".into(), "v4l2:/dev/video-nope".into()],
             3,
-            "V4L2 device",
+            "V4L2",
         ),
         (
             vec![
