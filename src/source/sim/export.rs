@@ -108,7 +108,7 @@ type Plot = dyn FnMut(i64, i64, [u8; 3], &mut [u8]);
 /// segments, head and foot points, and the horizon (cyan) where it crosses the image.
 pub fn annotate(rgb: &mut [u8], src: &SimSource) {
     let (w, h) = (src.spec().width, src.spec().height);
-    let mut put = |x: i64, y: i64, c: [u8; 3], rgb: &mut [u8]| {
+    let mut put = move |x: i64, y: i64, c: [u8; 3], rgb: &mut [u8]| {
         if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
             let i = (y as usize * w + x as usize) * 3;
             rgb[i..i + 3].copy_from_slice(&c);
