@@ -302,7 +302,6 @@ fn demo(a: DemoArgs) -> i32 {
         done: 0,
     };
     let code = run_source(&cfg, &mut progress);
-    eprintln!();
     let sim = progress.inner;
     let cast = sim.cast();
     // Until the tracking, calibration and measurement stages report to the demo,
@@ -346,6 +345,9 @@ impl source::FrameSource for Progress {
                     self.total,
                     self.done * 100 / self.total.max(1)
                 );
+                if self.done == self.total {
+                    eprintln!();
+                }
             }
         }
         r
@@ -442,7 +444,9 @@ fn sim_cmd(a: SimArgs) -> i32 {
     )
     .and_then(|_| y4m.as_mut().map_or(Ok(()), |w| w.flush()))
     .and_then(|_| truth.as_mut().map_or(Ok(()), |w| w.flush()));
-    eprintln!();
+    if total > 0 {
+        eprintln!();
+    }
     match result {
         Ok(()) => exit::OK,
         Err(e) => fail(&"writing failed", e),
