@@ -21,7 +21,7 @@
 //!   (OpenCV's MOG2 defaults: 53 frames). The price: a ghost left by a
 //!   background object that moves away also takes that long to heal, and
 //!   the region of a person who stops keeps its size for that long.
-//! * Shadows: a foreground pixel 0.5–0.95 times as bright as a background
+//! * Shadows: a foreground pixel 0.7–0.95 times as bright as a background
 //!   mode counts as shadow. See `bench/RESULTS.md` ("Detection") for what
 //!   chroma would add and why the test is luma-only.
 
@@ -79,8 +79,12 @@ pub struct DetectConfig {
     pub relearn_fraction: f64,
     /// Opening radius in pixels (removes specks; 0 = off).
     pub open_radius: u32,
-    /// Closing radius in pixels (fills holes and gaps; 0 = off).
+    /// Closing half-width in pixels (fills holes and gaps; 0 = off).
     pub close_radius: u32,
+    /// Closing half-height in pixels: taller than wide, it rejoins a
+    /// person's legs and torso across a waist-high gap without merging
+    /// people side by side.
+    pub close_radius_y: u32,
     /// Smallest region kept, in pixels per megapixel of frame (scales with resolution).
     pub min_area_per_mpix: u32,
     /// Regions one frame can hold (more are counted and dropped).
@@ -104,13 +108,14 @@ impl Default for DetectConfig {
             fast_startup: true,
             foreground_rate: 0.25,
             shadow: true,
-            shadow_min_ratio: 0.5,
+            shadow_min_ratio: 0.7,
             shadow_max_ratio: 0.95,
             gain_compensation: true,
             gain_threshold: 0.03,
             relearn_fraction: 0.6,
             open_radius: 1,
             close_radius: 2,
+            close_radius_y: 6,
             min_area_per_mpix: 400,
             max_regions: 64,
             max_runs_per_row: 16,
@@ -149,6 +154,7 @@ impl DetectConfig {
         check_range("detect.relearn_fraction", self.relearn_fraction, 0.1..=1.0)?;
         check_range("detect.open_radius", self.open_radius, 0..=4)?;
         check_range("detect.close_radius", self.close_radius, 0..=8)?;
+        check_range("detect.close_radius_y", self.close_radius_y, 0..=16)?;
         check_range(
             "detect.min_area_per_mpix",
             self.min_area_per_mpix,
@@ -304,6 +310,7 @@ pub struct Detector {
     labeller: Labeller,
     open_radius: u32,
     close_radius: u32,
+    close_radius_y: u32,
     min_area: u32,
 }
 
@@ -319,6 +326,7 @@ impl Detector {
             labeller: Labeller::new(cfg.run_capacity(size)),
             open_radius: cfg.open_radius,
             close_radius: cfg.close_radius,
+            close_radius_y: cfg.close_radius_y,
             min_area: cfg.min_area(size).max(1),
         }
     }
@@ -345,8 +353,9 @@ impl Detector {
     /// Stage 2: opening then closing of the raw mask into [`Self::mask`].
     pub fn clean_up(&mut self) {
         self.clean.copy_from(&self.raw);
-        morphology::open(&mut self.clean, &mut self.scratch, self.open_radius);
-        morphology::close(&mut self.clean, &mut self.scratch, self.close_radius);
+        let (o, cx, cy) = (self.open_radius, self.close_radius, self.close_radius_y);
+        morphology::open(&mut self.clean, &mut self.scratch, o, o);
+        morphology::close(&mut self.clean, &mut self.scratch, cx, cy);
     }
     /// Stage 3: connected regions of [`Self::mask`] into `out` (cleared first).
     pub fn label(&mut self, out: &mut RegionSet) {

@@ -149,37 +149,37 @@ fn vertical(src: &BitMask, dst: &mut BitMask, erode: bool) {
     }
 }
 
-/// `(2r+1)²` square erosion or dilation of `m` in place (`tmp`: same size).
-fn square(m: &mut BitMask, tmp: &mut BitMask, r: u32, erode: bool) {
-    for _ in 0..r {
+/// `(2rx+1)×(2ry+1)` rectangle erosion or dilation of `m` in place (`tmp`: same size).
+fn rect(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32, erode: bool) {
+    for _ in 0..rx {
         horizontal(m, erode);
     }
-    for _ in 0..r {
+    for _ in 0..ry {
         vertical(m, tmp, erode);
         core::mem::swap(&mut m.words, &mut tmp.words);
     }
 }
 
-/// Erosion by a `(2r+1)²` square, in place; `tmp` is scratch of the same size.
-pub fn erode(m: &mut BitMask, tmp: &mut BitMask, r: u32) {
-    square(m, tmp, r, true);
+/// Erosion by a `(2rx+1)×(2ry+1)` rectangle, in place; `tmp` is scratch of the same size.
+pub fn erode(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
+    rect(m, tmp, rx, ry, true);
 }
 
-/// Dilation by a `(2r+1)²` square, in place; `tmp` is scratch of the same size.
-pub fn dilate(m: &mut BitMask, tmp: &mut BitMask, r: u32) {
-    square(m, tmp, r, false);
+/// Dilation by a `(2rx+1)×(2ry+1)` rectangle, in place; `tmp` is scratch of the same size.
+pub fn dilate(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
+    rect(m, tmp, rx, ry, false);
 }
 
-/// Opening (erode then dilate): removes specks narrower than `2r+1`.
-pub fn open(m: &mut BitMask, tmp: &mut BitMask, r: u32) {
-    erode(m, tmp, r);
-    dilate(m, tmp, r);
+/// Opening (erode then dilate): removes specks narrower than the rectangle.
+pub fn open(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
+    erode(m, tmp, rx, ry);
+    dilate(m, tmp, rx, ry);
 }
 
-/// Closing (dilate then erode): fills holes and gaps narrower than `2r+1`.
-pub fn close(m: &mut BitMask, tmp: &mut BitMask, r: u32) {
-    dilate(m, tmp, r);
-    erode(m, tmp, r);
+/// Closing (dilate then erode): fills holes and gaps narrower than the rectangle.
+pub fn close(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
+    dilate(m, tmp, rx, ry);
+    erode(m, tmp, rx, ry);
 }
 
 #[cfg(test)]
@@ -235,7 +235,7 @@ mod tests {
                                 m.set(x, y, px[y * w + x]);
                             }
                         }
-                        square(&mut m, &mut tmp, r, erode);
+                        rect(&mut m, &mut tmp, r, r, erode);
                         let want = reference(&px, w, h, i64::from(r), erode);
                         for y in 0..h {
                             for x in 0..w {
