@@ -23,8 +23,9 @@
 //!   at the steady α = 1/500 about 5/3 of both). The price: a ghost left by
 //!   a background object that moves away also takes that long to heal.
 //! * Shadows: a foreground pixel 0.7–0.95 times as bright as a background
-//!   mode counts as shadow. See `bench/RESULTS.md` ("Detection") for what
-//!   chroma would add and why the test is luma-only.
+//!   mode counts as shadow (luma only; OpenCV's 0.5 erased grey clothing on
+//!   PETS). `bench/RESULTS.md` ("Detection") has the measurements and the
+//!   open question of a chroma term.
 
 pub mod background;
 pub mod morphology;
