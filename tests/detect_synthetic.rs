@@ -1,7 +1,7 @@
 //! Detection on generated scenes: global gain steps, slow drift, a person
 //! who stops, zero allocations per frame, and a bit-exactness digest.
 
-use stature::alloc_count::{allocations, CountingAlloc};
+use stature::alloc_count::{thread_allocations, CountingAlloc};
 use stature::detect::{BBox, DetectConfig, Detector, RegionSet};
 use stature::frame::{Frame, Size};
 
@@ -190,7 +190,7 @@ fn process_allocates_nothing_per_frame() {
     let mut s = Scene::new();
     s.render(&mut f, 1.0, 0.0, None);
     d.process(&f, &mut out);
-    let before = allocations();
+    let before = thread_allocations();
     for i in 0..60 {
         let p = BBox {
             x0: 10 + 3 * i,
@@ -201,7 +201,7 @@ fn process_allocates_nothing_per_frame() {
         s.render(&mut f, if i == 40 { 1.3 } else { 1.0 }, 0.0, Some(p));
         d.process(&f, &mut out);
     }
-    assert_eq!(allocations() - before, 0);
+    assert_eq!(thread_allocations() - before, 0);
 }
 
 /// The model state after a fixed synthetic sequence. Integer-only
