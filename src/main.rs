@@ -373,8 +373,10 @@ fn sim_cmd(a: SimArgs) -> i32 {
         );
         return exit::BAD_INPUT;
     };
-    if a.frames == Some(0) {
-        eprintln!("error: --frames must be at least 1");
+    if a.frames
+        .is_some_and(|n| n == 0 || n > source::sim::MAX_FRAMES)
+    {
+        eprintln!("error: --frames must be in 1..={}", source::sim::MAX_FRAMES);
         return exit::BAD_INPUT;
     }
     let opts = SimOptions {

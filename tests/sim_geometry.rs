@@ -463,3 +463,26 @@ fn bad_options_are_refused() {
     assert_eq!(sim.next_frame(&mut right).unwrap(), Next::Frame);
     assert_eq!(sim.next_frame(&mut right).unwrap(), Next::End);
 }
+
+/// Frame hashes of `sim:plaza?seed=1` recorded on x86_64 Linux. The renderer
+/// uses only IEEE-exact arithmetic (no libm, no fused multiply-add), so every
+/// platform must reproduce them; a deliberate change to the renderer updates them.
+const GOLDEN_PLAZA_SEED1: [(u64, u64); 3] = [
+    (0, 0xc678_5d62_4a98_d74e),
+    (100, 0x8a27_e355_a2ee_5220),
+    (500, 0x2d8a_691e_5955_9420),
+];
+
+#[test]
+fn golden_frames_are_reproduced() {
+    let mut sim = SimSource::open("plaza", "seed=1").unwrap();
+    let mut frame = Frame::new(sim.info().size);
+    let got: Vec<(u64, u64)> = GOLDEN_PLAZA_SEED1
+        .iter()
+        .map(|&(k, _)| {
+            sim.render(k, &mut frame);
+            (k, frame_hash(&frame))
+        })
+        .collect();
+    assert_eq!(got, GOLDEN_PLAZA_SEED1, "rendered bytes changed: {got:x?}");
+}
