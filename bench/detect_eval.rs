@@ -15,6 +15,7 @@ use stature::config::Config;
 use stature::dataset::{boxes_of_frame, load_pets_gt, pets_video, shared_data_dir};
 use stature::detect::{BBox, Detector, RegionSet};
 use stature::frame::Frame;
+use stature::source::sim::SimSource;
 use stature::source::{FrameSource, Next};
 
 fn main() {
@@ -23,6 +24,7 @@ fn main() {
     let mut sets = String::from("[detect]\n");
     let mut dump: Vec<u64> = Vec::new();
     let mut out_dir = String::from("/tmp");
+    let mut sim: Option<String> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut val = || args.next().expect("option value");
@@ -40,16 +42,34 @@ fn main() {
                     .collect()
             }
             "--out" => out_dir = val(),
+            "--sim" => sim = Some(val()),
             _ => panic!("unknown option {a}"),
         }
     }
     let cfg = Config::from_toml(&sets)
         .unwrap_or_else(|e| panic!("{e}"))
         .detect;
-    let dir = shared_data_dir().expect("../shared/data");
-    let gt = load_pets_gt(&dir).expect("gt");
-    let mut src = pets_video(&dir).expect("video");
-    let size = src.info().size;
+    let mut sim_src = sim.map(|u| SimSource::open_uri(&u).expect("sim scene"));
+    let (gt, mut pets) = if sim_src.is_some() {
+        (Vec::new(), None)
+    } else {
+        let dir = shared_data_dir().expect("../shared/data");
+        (
+            load_pets_gt(&dir).expect("gt"),
+            Some(pets_video(&dir).expect("video")),
+        )
+    };
+    fn pick<'a>(
+        sim: &'a mut Option<SimSource>,
+        pets: &'a mut Option<stature::source::y4m::Y4mSource>,
+    ) -> &'a mut dyn FrameSource {
+        match (sim, pets) {
+            (Some(s), _) => s,
+            (None, Some(p)) => p,
+            _ => unreachable!("one source is open"),
+        }
+    }
+    let size = pick(&mut sim_src, &mut pets).info().size;
     let mut frame = Frame::new(size);
     let mut det = Detector::new(&cfg, size);
     let mut out = RegionSet::with_capacity(cfg.region_capacity(), cfg.run_capacity(size));
@@ -59,7 +79,11 @@ fn main() {
     let mut truth: Vec<BBox> = Vec::new();
     let mut why = [0u32; 6];
     for i in 0..frames {
-        if src.next_frame(&mut frame).expect("frame") != Next::Frame {
+        if pick(&mut sim_src, &mut pets)
+            .next_frame(&mut frame)
+            .expect("frame")
+            != Next::Frame
+        {
             break;
         }
         det.process(&frame, &mut out);
@@ -68,11 +92,25 @@ fn main() {
         fg += u64::from(st.foreground);
         shadow += u64::from(st.shadow);
         truth.clear();
-        truth.extend(
-            boxes_of_frame(&gt, i as u32)
-                .iter()
-                .filter_map(|b| b.clipped(size.width, size.height)),
-        );
+        if let Some(s) = &sim_src {
+            truth.extend(
+                s.truth()
+                    .iter()
+                    .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
+                    .map(|o| BBox {
+                        x0: o.bbox[0],
+                        y0: o.bbox[1],
+                        x1: o.bbox[2],
+                        y1: o.bbox[3],
+                    }),
+            );
+        } else {
+            truth.extend(
+                boxes_of_frame(&gt, i as u32)
+                    .iter()
+                    .filter_map(|b| b.clipped(size.width, size.height)),
+            );
+        }
         if i >= warm {
             diagnose(&truth, out.regions(), &mut why);
             score.add(&truth, out.regions());

@@ -158,6 +158,6 @@ fn fast_path_is_identical_to_scalar_path_on_pets() {
         assert!(fast.stats().slow_pixels < slow.stats().slow_pixels || n == 1);
     });
     if ran.is_none() {
-        return;
+        eprintln!("fast vs scalar path: skipped");
     }
 }

@@ -617,9 +617,8 @@ impl Background {
             let off = (frame_off + y * 1031) % DITHER_PERIOD;
             let drow = &self.dither[off..off + wd];
             let mrow = &mut mask[y * wpr..(y + 1) * wpr];
-            mrow.fill(0);
             let full = if self.force_slow { 0 } else { wd / CHUNK };
-            for c in 0..wpr {
+            for (c, mword) in mrow.iter_mut().enumerate() {
                 let x0 = c * CHUNK;
                 let x1 = (x0 + CHUNK).min(wd);
                 let mut todo = if c < full {
@@ -674,7 +673,7 @@ impl Background {
                         Class::Background => {}
                     }
                 }
-                mrow[c] = bits;
+                *mword = bits;
             }
         }
         self.stats.slow_pixels = slow;

@@ -205,6 +205,11 @@ pub struct Score {
 impl Score {
     /// Scores one frame's regions against its truth boxes (clipped to the image).
     pub fn add(&mut self, truth: &[BBox], regions: &[Region]) {
+        self.add_filtered(truth, &[], regions);
+    }
+    /// As [`Score::add`], scoring as people only the boxes whose `person`
+    /// flag is set (all when `person` is empty).
+    pub fn add_filtered(&mut self, truth: &[BBox], person: &[bool], regions: &[Region]) {
         self.frames += 1;
         self.regions += regions.len() as u32;
         for (i, t) in truth.iter().enumerate() {
@@ -212,7 +217,7 @@ impl Score {
                 .iter()
                 .enumerate()
                 .all(|(j, o)| j == i || overlap(t, o) == 0);
-            if !isolated {
+            if !isolated || !person.get(i).copied().unwrap_or(true) {
                 continue;
             }
             self.isolated += 1;
