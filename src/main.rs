@@ -360,7 +360,6 @@ fn demo(a: DemoArgs) -> i32 {
         done: 0,
     };
     let code = run_source(&cfg, &mut progress);
-    eprintln!();
     let sim = progress.inner;
     let cast = sim.cast();
     // Until the tracking, calibration and measurement stages report to the demo,
@@ -404,6 +403,9 @@ impl source::FrameSource for Progress {
                     self.total,
                     self.done * 100 / self.total.max(1)
                 );
+                if self.done == self.total {
+                    eprintln!();
+                }
             }
         }
         r
@@ -429,8 +431,10 @@ fn sim_cmd(a: SimArgs) -> i32 {
         );
         return exit::BAD_INPUT;
     };
-    if a.frames == Some(0) {
-        eprintln!("error: --frames must be at least 1");
+    if a.frames
+        .is_some_and(|n| n == 0 || n > source::sim::MAX_FRAMES)
+    {
+        eprintln!("error: --frames must be in 1..={}", source::sim::MAX_FRAMES);
         return exit::BAD_INPUT;
     }
     let opts = SimOptions {
@@ -500,7 +504,9 @@ fn sim_cmd(a: SimArgs) -> i32 {
     )
     .and_then(|_| y4m.as_mut().map_or(Ok(()), |w| w.flush()))
     .and_then(|_| truth.as_mut().map_or(Ok(()), |w| w.flush()));
-    eprintln!();
+    if total > 0 {
+        eprintln!();
+    }
     match result {
         Ok(()) => exit::OK,
         Err(e) => fail(&"writing failed", e),

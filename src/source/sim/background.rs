@@ -219,15 +219,9 @@ struct Tracer<'a> {
     seed: u64,
 }
 
-/// What a ray sees.
-struct Sample {
-    rgb: [f64; 3],
-    depth: u16,
-    ground: Option<[f64; 2]>,
-}
-
 impl Tracer<'_> {
-    fn trace(&self, u: f64, v: f64) -> Sample {
+    /// The colour a ray through `(u, v)` sees.
+    fn trace(&self, u: f64, v: f64) -> [f64; 3] {
         let o = [0.0, 0.0, self.proj.h];
         let d = self.proj.ray(u, v);
         let mut best: Option<(f64, [f64; 3], [f64; 3])> = None;
@@ -242,15 +236,9 @@ impl Tracer<'_> {
         let t_facade = (d[1] > 1e-12).then(|| self.spec.backdrop / d[1]);
         if let Some((t, n, rgb)) = best {
             if t_ground.is_none_or(|g| t <= g) && t_facade.is_none_or(|f| t <= f) {
-                let p = [t * d[0], t * d[1]];
                 let lit = 0.5
                     + 0.5 * (n[0] * self.sun[0] + n[1] * self.sun[1] + n[2] * self.sun[2]).max(0.0);
-                let dist = (p[0] * p[0] + p[1] * p[1]).sqrt();
-                return Sample {
-                    rgb: [rgb[0] * lit, rgb[1] * lit, rgb[2] * lit],
-                    depth: (dist * 100.0).clamp(0.0, 65_000.0) as u16,
-                    ground: None,
-                };
+                return [rgb[0] * lit, rgb[1] * lit, rgb[2] * lit];
             }
         }
         match (t_ground, t_facade) {
@@ -261,42 +249,55 @@ impl Tracer<'_> {
                 if self.spec.shadows && self.in_prop_shadow(g) {
                     rgb = [rgb[0] * 0.62, rgb[1] * 0.62, rgb[2] * 0.66];
                 }
-                Sample {
-                    rgb,
-                    depth: GROUND,
-                    ground: Some(g),
-                }
+                rgb
             }
             (_, Some(tf)) => {
                 let x = tf * d[0];
                 let z = self.proj.h + tf * d[2];
-                match self.facade(x, z) {
-                    Some(rgb) => Sample {
-                        rgb,
-                        depth: FAR,
-                        ground: None,
-                    },
-                    None => self.sky(d),
-                }
+                self.facade(x, z).unwrap_or_else(|| self.sky(d))
             }
             _ => self.sky(d),
         }
     }
 
-    fn sky(&self, d: [f64; 3]) -> Sample {
+    /// What the pixel centre hits, without colours: the depth-map value and the ground point.
+    fn locate(&self, u: f64, v: f64) -> (u16, Option<[f64; 2]>) {
+        let o = [0.0, 0.0, self.proj.h];
+        let d = self.proj.ray(u, v);
+        let t_prop = self
+            .solids
+            .iter()
+            .filter_map(|s| s.hit(o, d))
+            .map(|(t, _)| t)
+            .fold(f64::MAX, f64::min);
+        let t_ground = (d[2] < -1e-12).then(|| -self.proj.h / d[2]);
+        let t_facade = (d[1] > 1e-12).then(|| self.spec.backdrop / d[1]);
+        if t_prop < f64::MAX
+            && t_ground.is_none_or(|g| t_prop <= g)
+            && t_facade.is_none_or(|f| t_prop <= f)
+        {
+            let p = [t_prop * d[0], t_prop * d[1]];
+            let dist = (p[0] * p[0] + p[1] * p[1]).sqrt();
+            return ((dist * 100.0).clamp(0.0, 65_000.0) as u16, None);
+        }
+        match t_ground {
+            Some(tg) if t_facade.is_none_or(|tf| tg <= tf) => {
+                (GROUND, Some([tg * d[0], tg * d[1]]))
+            }
+            _ => (FAR, None),
+        }
+    }
+
+    fn sky(&self, d: [f64; 3]) -> [f64; 3] {
         let e = d[2] / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         let k = smoothstep(0.0, 0.5, e);
         let lo = [214.0, 222.0, 232.0];
         let hi = [126.0, 163.0, 214.0];
-        Sample {
-            rgb: [
-                lo[0] + (hi[0] - lo[0]) * k,
-                lo[1] + (hi[1] - lo[1]) * k,
-                lo[2] + (hi[2] - lo[2]) * k,
-            ],
-            depth: FAR,
-            ground: None,
-        }
+        [
+            lo[0] + (hi[0] - lo[0]) * k,
+            lo[1] + (hi[1] - lo[1]) * k,
+            lo[2] + (hi[2] - lo[2]) * k,
+        ]
     }
 
     fn in_prop_shadow(&self, g: [f64; 2]) -> bool {
@@ -454,20 +455,20 @@ pub fn render(spec: &SceneSpec, proj: &Proj, seed: u64) -> Background {
     for r in 0..h {
         for c in 0..w {
             let i = r * w + c;
-            let centre = tracer.trace(c as f64, r as f64);
+            let centre = tracer.locate(c as f64, r as f64);
             let mut sum = [0.0; 3];
             for (du, dv) in [(-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)] {
                 let s = tracer.trace(c as f64 + du, r as f64 + dv);
-                for k in 0..3 {
-                    sum[k] += s.rgb[k] * 0.25;
+                for (acc, c) in sum.iter_mut().zip(s) {
+                    *acc += c * 0.25;
                 }
             }
             let yuv = yuv(sum);
             y[i] = yuv[0].round().clamp(0.0, 255.0) as u8;
             uf[i] = yuv[1];
             vf[i] = yuv[2];
-            depth[i] = centre.depth;
-            if let (Some(g), false) = (centre.ground, ground.is_empty()) {
+            depth[i] = centre.0;
+            if let (Some(g), false) = (centre.1, ground.is_empty()) {
                 ground[i] = [g[0] as f32, g[1] as f32];
             }
         }

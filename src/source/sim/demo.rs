@@ -43,18 +43,14 @@ pub fn comparison_table(truth: &SceneTruth, cast: &[CastMember], est: &Estimates
         "\nCalibration of sim:{} (seed {}, {}x{}):",
         truth.scene, truth.seed, truth.width, truth.height
     );
-    let _ = writeln!(
-        s,
-        "  {:<22} {:>18}  {:<24} {}",
-        "", "true", "estimated", "error"
-    );
+    let _ = writeln!(s, "  {:<22} {:>24}  {:<24} error", "", "true", "estimated");
     let c = est.calibration;
     let mut row = |name: &str, t: f64, e: Option<f64>, unit: &str| {
         let (es, err) = match e {
             Some(e) => (format!("{e:.2}"), format!("{:+.2} {unit}", e - t)),
             None => (none(est.calibration_missing), String::new()),
         };
-        let _ = writeln!(s, "  {name:<22} {t:>18.2}  {es:<24} {err}");
+        let _ = writeln!(s, "  {name:<22} {t:>24.2}  {es:<24} {err}");
     };
     row(
         "focal length (px)",
@@ -85,7 +81,7 @@ pub fn comparison_table(truth: &SceneTruth, cast: &[CastMember], est: &Estimates
         || none(est.calibration_missing),
         |c| format!("({:.1}, {:.1})", c.vertical_vp[0], c.vertical_vp[1]),
     );
-    let _ = writeln!(s, "  {:<22} {:>18}  {}", "vertical VP (px)", vp, vp_est);
+    let _ = writeln!(s, "  {:<22} {:>24}  {}", "vertical VP (px)", vp, vp_est);
     let hz = truth.horizon;
     let hz_s = format!("[{:.3}, {:.3}, {:.1}]", hz[0], hz[1], hz[2]);
     let hz_est = c.map_or_else(
@@ -97,7 +93,7 @@ pub fn comparison_table(truth: &SceneTruth, cast: &[CastMember], est: &Estimates
             )
         },
     );
-    let _ = writeln!(s, "  {:<22} {:>18}  {}", "horizon [a,b,c]", hz_s, hz_est);
+    let _ = writeln!(s, "  {:<22} {:>24}  {}", "horizon [a,b,c]", hz_s, hz_est);
 
     let people: Vec<&CastMember> = cast
         .iter()
@@ -110,8 +106,8 @@ pub fn comparison_table(truth: &SceneTruth, cast: &[CastMember], est: &Estimates
     );
     let _ = writeln!(
         s,
-        "  {:>6} {:>7} {:>13} {:>11}  {:<24} {}",
-        "person", "group", "frames", "true (m)", "estimated (m)", "error (m)"
+        "  {:>6} {:>7} {:>13} {:>11}  {:<24} error (m)",
+        "person", "group", "frames", "true (m)", "estimated (m)"
     );
     let mut errors = Vec::new();
     for m in &people {

@@ -77,7 +77,7 @@ pub fn export(
         }
         progress(frame.index);
     }
-    if let Some(out) = truth.as_deref_mut() {
+    if let Some(out) = truth {
         out.write_all(b"\n]}\n")?;
     }
     Ok(())
@@ -101,21 +101,20 @@ pub fn to_rgb(frame: &Frame) -> Vec<u8> {
     rgb
 }
 
+/// Sets one pixel of an RGB image (ignored outside it).
+type Plot = dyn FnMut(i64, i64, [u8; 3], &mut [u8]);
+
 /// Draws the truth over an RGB image: boxes (green people, orange others), head-foot
 /// segments, head and foot points, and the horizon (cyan) where it crosses the image.
 pub fn annotate(rgb: &mut [u8], src: &SimSource) {
     let (w, h) = (src.spec().width, src.spec().height);
-    let mut put = |x: i64, y: i64, c: [u8; 3], rgb: &mut [u8]| {
+    let mut put = move |x: i64, y: i64, c: [u8; 3], rgb: &mut [u8]| {
         if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
             let i = (y as usize * w + x as usize) * 3;
             rgb[i..i + 3].copy_from_slice(&c);
         }
     };
-    let line = |a: [f64; 2],
-                b: [f64; 2],
-                c: [u8; 3],
-                rgb: &mut [u8],
-                put: &mut dyn FnMut(i64, i64, [u8; 3], &mut [u8])| {
+    let line = |a: [f64; 2], b: [f64; 2], c: [u8; 3], rgb: &mut [u8], put: &mut Plot| {
         let n = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil() as usize).clamp(1, 100_000);
         for i in 0..=n {
             let t = i as f64 / n as f64;

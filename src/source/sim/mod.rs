@@ -39,6 +39,10 @@ use people::{Actor, Kind, Pose};
 use scene::SceneSpec;
 pub use truth::{CastMember, ObjectTruth, SceneTruth};
 
+/// Longest clip accepted (11 hours at 25 fps): the cast is drawn for the whole
+/// clip at open, so its memory grows with the length.
+pub const MAX_FRAMES: u64 = 1_000_000;
+
 /// How to open a scene (what the `sim:` query string sets).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimOptions {
@@ -82,8 +86,8 @@ impl SimOptions {
             match k {
                 "seed" => o.seed = v.parse().map_err(|_| bad(k, v, "an integer >= 0"))?,
                 "frames" => match v.parse::<u64>() {
-                    Ok(n) if n >= 1 => o.frames = Some(n),
-                    _ => return Err(bad(k, v, "an integer >= 1")),
+                    Ok(n) if (1..=MAX_FRAMES).contains(&n) => o.frames = Some(n),
+                    _ => return Err(bad(k, v, &format!("an integer in 1..={MAX_FRAMES}"))),
                 },
                 "empty" => o.empty = flag(k, v)?,
                 "shadows" => o.shadows = Some(flag(k, v)?),
@@ -150,7 +154,7 @@ impl SimSource {
         if let Some(n) = opts.noise {
             spec.noise = n;
         }
-        let frames = opts.frames.unwrap_or(spec.frames);
+        let frames = opts.frames.unwrap_or(spec.frames).clamp(1, MAX_FRAMES);
         let proj = Proj::new(
             spec.f,
             spec.tilt_deg,
@@ -283,8 +287,13 @@ impl SimSource {
                     first_frame: 0,
                     last_frame: 0,
                 };
-                for k in 0..self.frames {
-                    let t = k as f64 / self.spec.fps as f64;
+                // Only the frames while the actor is on its path.
+                let fps = self.spec.fps as f64;
+                let (t0, t1) = a.span();
+                let k0 = (t0 * fps).floor().max(0.0) as u64;
+                let k1 = ((t1 * fps).ceil().max(0.0) as u64).min(self.frames.saturating_sub(1));
+                for k in k0..=k1 {
+                    let t = k as f64 / fps;
                     let Some(p) = a.pose(i, t, &self.proj) else {
                         continue;
                     };

@@ -256,7 +256,12 @@ impl Actor {
         let k = self.build;
         let f = [pose.fwd[0], pose.fwd[1]];
         let l = [-f[1], f[0]];
-        let root = pose.foot;
+        // The legs bend backward at the knee, so the shoes sit behind the hips on average:
+        // move the body forward by that average (0.0453·h walking, -0.0202·h standing,
+        // from integrating the gait below over a cycle) so that, over a stride, the point
+        // between the shoes follows the path.
+        let centre = if pose.walking { 0.0453 } else { -0.0202 } * h;
+        let root = [pose.foot[0] + f[0] * centre, pose.foot[1] + f[1] * centre];
         // Walking amplitudes; standing still keeps a little sway.
         let (hip_amp, arm_amp) = if pose.walking {
             (0.38, 0.38)
@@ -585,9 +590,10 @@ pub fn cast(spec: &SceneSpec, proj: &Proj, seed: u64, duration: f64) -> Vec<Acto
         placed += members;
     }
     // Dogs trot along paths of their own.
-    let n_dogs = ((spec.dogs_per_min / 60.0) * span).round() as usize;
+    let n_dogs = ((spec.dogs_per_min / 60.0) * duration).round() as usize;
     for i in 0..n_dogs {
-        let t = -pre + (i as f64 + rng.uniform()) * span / n_dogs as f64;
+        // Dogs and cars cross during the clip (not before it), so that each one is seen.
+        let t = -4.0 + (i as f64 + rng.uniform()) * duration / n_dogs as f64;
         let path = area.path(&mut rng, proj, &props, 0.6);
         let height = rng.range(0.45, 0.7);
         let coat = pick(
@@ -620,9 +626,9 @@ pub fn cast(spec: &SceneSpec, proj: &Proj, seed: u64, duration: f64) -> Vec<Acto
         next_id += 1;
     }
     // Cars drive straight across along world x at a depth where the road is in view.
-    let n_cars = ((spec.cars_per_min / 60.0) * span).round() as usize;
+    let n_cars = ((spec.cars_per_min / 60.0) * duration).round() as usize;
     for i in 0..n_cars {
-        let t = -pre * 0.2 + (i as f64 + rng.uniform()) * span / n_cars as f64;
+        let t = -1.0 + (i as f64 + rng.uniform()) * duration / n_cars as f64;
         let row = rng.range(0.4, 0.75) * spec.height as f64;
         let y = proj
             .ground(proj.pu, row)

@@ -60,7 +60,7 @@ impl Renderer {
     pub fn new(spec: &SceneSpec, actors: &[Actor], seed: u64) -> Self {
         let (w, h) = (spec.width, spec.height);
         let (mx, my) = (w / 2, h / 2);
-        let mut rng = Rng::new(mix64(seed ^ 0x4E4F_4953_45));
+        let mut rng = Rng::new(mix64(seed ^ 0x004E_4F49_5345));
         let noise = (0..w * h + NOISE_SLACK)
             .map(|_| (spec.noise * rng.normal()).round().clamp(-127.0, 127.0) as i8)
             .collect();
