@@ -31,6 +31,8 @@ enum Command {
     Demo(DemoArgs),
     /// Print or check configuration files.
     Config(ConfigArgs),
+    /// Train the region classifier and write its weight blob.
+    Train(TrainArgs),
     /// Render a simulated scene to Y4M, its ground truth to JSON, or a frame to PNG.
     Sim(SimArgs),
 }
@@ -76,8 +78,60 @@ struct RunArgs {
     /// Stop after N frames.
     #[arg(long)]
     frames: Option<u64>,
+    /// Classifier weight blob (default: the built-in weights).
+    #[arg(long)]
+    weights: Option<PathBuf>,
     #[command(flatten)]
     verbosity: Verbosity,
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// Data folder (default: ../shared/data beside the crate).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Where to write the weight blob.
+    #[arg(long, default_value = "weights/classifier.bin")]
+    out: PathBuf,
+    /// Where to write the Markdown training report (default: stdout only).
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Window size WxH in pixels.
+    #[arg(long, default_value = "32x64")]
+    window: String,
+    /// Margin above and below the box, 1/256 of its height.
+    #[arg(long, default_value_t = 43)]
+    margin: u16,
+    /// HOG cell side, pixels.
+    #[arg(long, default_value_t = 4)]
+    hog_cell: u8,
+    /// LBP cell side, pixels.
+    #[arg(long, default_value_t = 8)]
+    lbp_cell: u8,
+    /// LBP comparison offset, grey levels.
+    #[arg(long, default_value_t = 2)]
+    lbp_threshold: u8,
+    /// Feature set: hog+lbp, hog or lbp.
+    #[arg(long, default_value = "hog+lbp")]
+    features: String,
+    /// SVM C (default: chosen by cross-validation).
+    #[arg(long)]
+    c: Option<f64>,
+    /// Share of HOG blocks / LBP cells kept by weight magnitude (Park et al.).
+    #[arg(long, default_value_t = 1.0)]
+    select: f64,
+    /// Use every n-th PETS training frame for the base set.
+    #[arg(long, default_value_t = 2)]
+    pets_stride: u32,
+    /// Also evaluate on the held-out PETS frames (600-794).
+    #[arg(long)]
+    eval: bool,
+    /// Only evaluate this weight blob on the held-out data (no training).
+    #[arg(long)]
+    evaluate: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -140,6 +194,7 @@ fn main() {
         Some(Command::Demo(a)) => demo(a),
         Some(Command::Run(a)) => run_cmd(a),
         Some(Command::Config(a)) => config_cmd(a),
+        Some(Command::Train(a)) => train_cmd(a),
         Some(Command::Sim(a)) => sim_cmd(a),
     };
     std::process::exit(code);
@@ -182,6 +237,9 @@ fn resolve_config(a: &RunArgs) -> Result<Config, ConfigError> {
     }
     if let Some(n) = a.frames {
         cfg.run.frames = n;
+    }
+    if let Some(w) = &a.weights {
+        cfg.classify.weights = w.display().to_string();
     }
     cfg.validate()?;
     Ok(cfg)
@@ -453,4 +511,88 @@ fn sim_cmd(a: SimArgs) -> i32 {
         Ok(()) => exit::OK,
         Err(e) => fail(&"writing failed", e),
     }
+}
+
+fn train_cmd(a: TrainArgs) -> i32 {
+    use stature::classify::{layout::Layout, train};
+    let Some(data_dir) = a.data.or_else(stature::dataset::shared_data_dir) else {
+        eprintln!("error: no data folder (give --data DIR)");
+        return exit::BAD_INPUT;
+    };
+    if let Some(path) = &a.evaluate {
+        let cfg = stature::classify::ClassifyConfig {
+            weights: path.display().to_string(),
+            ..Default::default()
+        };
+        let model = match cfg.load_model() {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return exit::BAD_INPUT;
+            }
+        };
+        return match train::evaluate_pets(&data_dir, &model, a.seed) {
+            Ok(ev) => {
+                print!("{}\n{}", ev.table(), ev.det_table());
+                exit::OK
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                exit::BAD_INPUT
+            }
+        };
+    }
+    let Some((w, h)) = a
+        .window
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+    else {
+        eprintln!("error: --window {}: expected WxH, e.g. 32x64", a.window);
+        return exit::BAD_INPUT;
+    };
+    let mut layout = match Layout::full(w, h, a.margin, a.hog_cell, a.lbp_cell, a.lbp_threshold) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return exit::BAD_INPUT;
+        }
+    };
+    match a.features.as_str() {
+        "hog+lbp" => {}
+        "hog" => layout.lbp_cells.fill(false),
+        "lbp" => layout.hog_blocks.fill(false),
+        f => {
+            eprintln!("error: --features {f}: expected hog+lbp, hog or lbp");
+            return exit::BAD_INPUT;
+        }
+    }
+    let opts = train::TrainOptions {
+        data_dir,
+        layout,
+        seed: a.seed,
+        c: a.c,
+        select: a.select.clamp(0.01, 1.0),
+        pets_stride: a.pets_stride.max(1),
+        eval: a.eval,
+    };
+    let (model, report) = match train::train(&opts) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return exit::BAD_INPUT;
+        }
+    };
+    print!("{report}");
+    if let Err(e) = std::fs::write(&a.out, model.to_bytes()) {
+        eprintln!("error: cannot write {}: {e}", a.out.display());
+        return exit::UNAVAILABLE;
+    }
+    if let Some(r) = &a.report {
+        if let Err(e) = std::fs::write(r, &report) {
+            eprintln!("error: cannot write {}: {e}", r.display());
+            return exit::UNAVAILABLE;
+        }
+    }
+    eprintln!("wrote {}", a.out.display());
+    exit::OK
 }

@@ -33,9 +33,14 @@ impl Pipeline {
             frame: Frame::new(size),
             detector: Detector::new(&cfg.detect, size),
             regions: RegionSet::with_capacity(max_regions, cfg.detect.run_capacity(size)),
-            classifier: Classifier::new(&cfg.classify),
+            // The configuration was validated, weights included; should the
+            // file have changed since, no region is called a person.
+            classifier: Classifier::new(&cfg.classify).unwrap_or_else(|e| {
+                log::error!("{e}; every region will be rejected");
+                Classifier::reject_all(&cfg.classify)
+            }),
             verdicts: Vec::with_capacity(max_regions),
-            max_classified: max_regions,
+            max_classified: cfg.classify.max_regions.min(max_regions),
             frames: 0,
         }
     }
@@ -45,9 +50,12 @@ impl Pipeline {
         self.detector.process(&self.frame, &mut self.regions);
         self.verdicts.clear();
         let luma = self.frame.luma();
-        for region in self.regions.regions().iter().take(self.max_classified) {
+        let regions = self.regions.regions();
+        for region in regions.iter().take(self.max_classified) {
             self.verdicts.push(self.classifier.classify(luma, region));
         }
+        self.classifier
+            .note_skipped(regions.len().saturating_sub(self.max_classified));
         self.frames += 1;
     }
 
