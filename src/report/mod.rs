@@ -139,18 +139,27 @@ impl Reporter {
 }
 
 /// Starts the I/O thread writing every record from `rx` to every sink.
-/// The thread ends when the queue is closed and drained.
+/// The thread ends when the queue is closed and drained. Returns once the
+/// thread has finished its own start-up (a new thread allocates as it
+/// starts), so that the loop's steady state begins with nothing pending.
 pub fn spawn_io(
     rx: Receiver<Record>,
     mut sinks: Vec<Sink>,
     format: Format,
     counters: Arc<Counters>,
 ) -> std::thread::JoinHandle<()> {
-    std::thread::Builder::new()
+    let (ready_tx, ready_rx) = bounded::<()>(1);
+    let handle = std::thread::Builder::new()
         .name("stature-io".into())
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
+            // crossbeam allocates a thread's blocking context the first time
+            // it waits: wait once now, on an empty channel, so that happens
+            // during start-up and not in the middle of the run.
+            let (_keep, warm) = bounded::<()>(1);
+            let _ = warm.recv_timeout(std::time::Duration::from_micros(1));
+            let _ = ready_tx.send(());
             let mut deliver = |record: Record, sinks: &mut Vec<Sink>| {
                 let bytes = match encode::encode(&record, format, &mut buf) {
                     Ok(b) => b,
@@ -197,7 +206,10 @@ pub fn spawn_io(
                 }
             }
         })
-        .expect("spawning the I/O thread at start-up")
+        .expect("spawning the I/O thread at start-up");
+    // An error means the thread died before it was ready; `join` reports it.
+    let _ = ready_rx.recv();
+    handle
 }
 
 #[cfg(test)]
