@@ -137,8 +137,10 @@ pub struct Track {
     pub samples: HistoryBuffer<HeadFoot, RING>,
     /// Sample accepted this frame (for calibration), if any.
     pub fresh: Option<HeadFoot>,
-    /// Latest head/foot (accepted or not), pixels.
+    /// Latest head/foot of a snapped region (accepted or not), pixels.
     pub last: HeadFoot,
+    /// Frame of `last`.
+    pub last_seen: u64,
     /// Frames it has been tracked.
     pub age: u32,
     /// Frame of the last region support.
@@ -314,6 +316,7 @@ impl Tracker {
                 samples: HistoryBuffer::new(),
                 fresh: None,
                 last: HeadFoot::default(),
+                last_seen: frame_no,
                 age: 0,
                 last_support: frame_no,
                 merged: false,
@@ -500,6 +503,7 @@ fn snap(
         foot: [f64::from(r.foot[0]), f64::from(r.foot[1])],
     };
     t.last = hf;
+    t.last_seen = frame_no;
     if r.touches_border {
         return;
     }
