@@ -82,7 +82,37 @@ struct RunArgs {
     #[arg(long)]
     weights: Option<PathBuf>,
     #[command(flatten)]
+    scale: ScaleArgs,
+    #[command(flatten)]
     verbosity: Verbosity,
+}
+
+/// How heights get their metric scale (see `calibrate::ScaleMode`).
+#[derive(Args, Default)]
+struct ScaleArgs {
+    /// Known camera mounting height in metres (best absolute heights).
+    #[arg(long, value_name = "METRES")]
+    camera_height: Option<f64>,
+    /// Height of the first person tracked (walk through alone), metres.
+    #[arg(long, value_name = "METRES")]
+    reference_height: Option<f64>,
+    /// Mean height of the people who pass (default 1.70), metres.
+    #[arg(long, value_name = "METRES")]
+    prior_height: Option<f64>,
+}
+
+impl ScaleArgs {
+    fn apply(&self, cfg: &mut Config) {
+        if let Some(h) = self.camera_height {
+            cfg.calibrate.camera_height_m = h;
+        }
+        if let Some(h) = self.reference_height {
+            cfg.calibrate.reference_height_m = h;
+        }
+        if let Some(h) = self.prior_height {
+            cfg.calibrate.prior_height_m = h;
+        }
+    }
 }
 
 #[derive(Args)]
@@ -241,6 +271,7 @@ fn resolve_config(a: &RunArgs) -> Result<Config, ConfigError> {
     if let Some(w) = &a.weights {
         cfg.classify.weights = w.display().to_string();
     }
+    a.scale.apply(&mut cfg);
     cfg.validate()?;
     Ok(cfg)
 }
@@ -259,7 +290,7 @@ fn run_cmd(a: RunArgs) -> i32 {
 
 fn run_pipeline(cfg: &Config) -> i32 {
     match source::open(&cfg.source.uri) {
-        Ok(mut s) => run_source(cfg, s.as_mut()),
+        Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new())),
         Err(e) => {
             log::error!("{e}");
             e.exit_code()
@@ -267,7 +298,13 @@ fn run_pipeline(cfg: &Config) -> i32 {
     }
 }
 
-fn run_source(cfg: &Config, src: &mut dyn source::FrameSource) -> i32 {
+/// What the demo compares with the truth: final calibration and heights.
+type Outcome = (
+    Option<stature::report::record::Calibration>,
+    Vec<stature::report::record::Height>,
+);
+
+fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Outcome) -> i32 {
     let mut sinks = Vec::new();
     for spec in &cfg.report.sinks {
         // Validated already; parse cannot fail here.
@@ -308,7 +345,8 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource) -> i32 {
         stop: &stop,
         allocations: stature::alloc_count::allocations,
     };
-    let summary = run::run(cfg, src, &mut reporter, &opts);
+    let mut summary = run::run(cfg, src, &mut reporter, &opts);
+    *outcome = (summary.calibration.take(), core::mem::take(&mut summary.heights));
     reporter.finish(Duration::from_secs(5));
     if io.join().is_err() {
         log::error!("the report thread failed");
@@ -359,19 +397,35 @@ fn demo(a: DemoArgs) -> i32 {
         total,
         done: 0,
     };
-    let code = run_source(&cfg, &mut progress);
+    let mut outcome = (None, Vec::new());
+    let code = run_source(&cfg, &mut progress, &mut outcome);
     let sim = progress.inner;
     let cast = sim.cast();
-    // Until the tracking, calibration and measurement stages report to the demo,
-    // nothing is estimated; say so rather than print numbers.
+    // Each final height is matched to the person whose true foot is nearest
+    // the track's last foot point in its last frame.
+    let heights: Vec<demo::HeightEstimate> = outcome
+        .1
+        .iter()
+        .map(|h| demo::HeightEstimate {
+            track_id: h.track_id,
+            height_m: f64::from(h.height_m),
+            person_id: sim
+                .person_at(
+                    h.frame,
+                    [f64::from(h.foot_px[0]), f64::from(h.foot_px[1])],
+                    25.0,
+                )
+                .map(|m| m.id),
+        })
+        .collect();
     let table = demo::comparison_table(
         sim.scene_truth(),
         &cast,
         &demo::Estimates {
-            calibration: None,
-            calibration_missing: "stage missing: calibrate",
-            heights: &[],
-            heights_missing: "stage missing: track/measure",
+            calibration: outcome.0.as_ref(),
+            calibration_missing: "too few single-person observations for a calibration",
+            heights: &heights,
+            heights_missing: "no track reached the calibration confidence and sample count",
         },
     );
     eprint!("{table}");
