@@ -8,6 +8,7 @@
 //! calibration, final heights) are held back by the loop and retried.
 
 pub mod encode;
+pub mod mqtt;
 pub mod record;
 pub mod sink;
 
@@ -154,6 +155,9 @@ pub fn spawn_io(
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
+            for s in sinks.iter_mut() {
+                s.attach_counters(&counters);
+            }
             // crossbeam allocates a thread's blocking context the first time
             // it waits: wait once now, on an empty channel, so that happens
             // during start-up and not in the middle of the run.
@@ -171,7 +175,7 @@ pub fn spawn_io(
                 };
                 let mut any = false;
                 for (sink, fails) in sinks.iter_mut().zip(failures.iter_mut()) {
-                    match sink.write_record(bytes) {
+                    match sink.write(&record, bytes, format) {
                         Ok(()) => any = true,
                         Err(e) => {
                             *fails += 1;
@@ -201,7 +205,7 @@ pub fn spawn_io(
                 }
             }
             for s in sinks.iter_mut() {
-                if let Err(e) = s.flush() {
+                if let Err(e) = s.close() {
                     log::warn!("report: {} sink: final flush failed: {e}", s.name());
                 }
             }
