@@ -136,7 +136,8 @@ pub enum Format {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ReportConfig {
-    /// Sinks: `stdout`, `file:PATH`, `udp:HOST:PORT`, `serial:/dev/ttyX?baud=N`.
+    /// Sinks: `stdout`, `file:PATH`, `udp:HOST:PORT`, `serial:/dev/ttyX?baud=N`,
+    /// `mqtt:HOST[:PORT]?topic=..`.
     pub sinks: Vec<String>,
     /// Encoding of every record.
     pub format: Format,
@@ -146,6 +147,8 @@ pub struct ReportConfig {
     pub held_finals: usize,
     /// Seconds of stream time between `status` records.
     pub status_interval_s: f64,
+    /// Settings of `mqtt:` sinks (`[report.mqtt]`).
+    pub mqtt: crate::report::mqtt::MqttConfig,
 }
 
 impl Default for ReportConfig {
@@ -156,6 +159,7 @@ impl Default for ReportConfig {
             queue: 256,
             held_finals: 64,
             status_interval_s: 5.0,
+            mqtt: Default::default(),
         }
     }
 }
@@ -224,6 +228,7 @@ impl Config {
             crate::report::sink::SinkSpec::parse(s)
                 .map_err(|e| ConfigError::new("report.sinks", s, e))?;
         }
+        self.report.mqtt.validate()?;
         self.detect.validate()?;
         self.classify.validate()?;
         self.track.validate()?;

@@ -66,7 +66,9 @@ struct RunArgs {
     /// Frame source: sim:NAME?seed=N, y4m:PATH, y4m:- or v4l2:/dev/videoN?width=..&height=..&fps=..&format=..
     #[arg(long)]
     source: Option<String>,
-    /// Report sink (repeatable): stdout, file:PATH, udp:HOST:PORT, serial:/dev/ttyX?baud=N
+    /// Report sink (repeatable): stdout, file:PATH, udp:HOST:PORT, serial:/dev/ttyX?baud=N,
+    /// mqtt:HOST[:PORT]?topic=T&qos=0|1&client_id=ID&tls=true&ca=FILE&ha_discovery=true
+    /// (MQTT credentials only from the config file or STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD)
     #[arg(long = "report")]
     reports: Vec<String>,
     /// Record encoding.
@@ -315,7 +317,7 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
                 return exit::BAD_INPUT;
             }
         };
-        match sink::Sink::open(&spec) {
+        match sink::Sink::open_with(&spec, &cfg.report.mqtt) {
             Ok(s) => sinks.push(s),
             Err(e) => {
                 log::error!("cannot open report sink: {e}");

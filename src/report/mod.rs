@@ -8,6 +8,7 @@
 //! calibration, final heights) are held back by the loop and retried.
 
 pub mod encode;
+pub mod mqtt;
 pub mod record;
 pub mod sink;
 
@@ -154,6 +155,9 @@ pub fn spawn_io(
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
+            for s in sinks.iter_mut() {
+                s.attach_counters(&counters);
+            }
             // crossbeam allocates the first time a thread parks, and the
             // first time a channel's waker registers a waiter: park once on
             // this very channel now (nothing is queued yet, so it times out;
@@ -172,7 +176,7 @@ pub fn spawn_io(
                 };
                 let mut any = false;
                 for (sink, fails) in sinks.iter_mut().zip(failures.iter_mut()) {
-                    match sink.write_record(bytes) {
+                    match sink.write(&record, bytes, format) {
                         Ok(()) => any = true,
                         Err(e) => {
                             *fails += 1;
@@ -205,7 +209,7 @@ pub fn spawn_io(
                 }
             }
             for s in sinks.iter_mut() {
-                if let Err(e) = s.flush() {
+                if let Err(e) = s.close() {
                     log::warn!("report: {} sink: final flush failed: {e}", s.name());
                 }
             }

@@ -1,11 +1,17 @@
 //! Report sinks: where encoded records go.
 //!
 //! Sinks live in the I/O thread. Each write is bounded in time (UDP never
-//! blocks; serial writes time out), so one dead link delays the others by at
-//! most its timeout, and the vision loop not at all.
+//! blocks; serial writes time out; MQTT only queues for its own connection
+//! thread), so one dead link delays the others by at most its timeout, and
+//! the vision loop not at all.
 
+use super::mqtt::{MqttConfig, MqttSettings, MqttSpec};
+use super::record::Record;
+use super::Counters;
+use crate::config::Format;
 use std::io::{self, Write};
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::sync::Arc;
 use std::time::Duration;
 
 /// A parsed `--report` value.
@@ -24,23 +30,33 @@ pub enum SinkSpec {
         /// Baud rate.
         baud: u32,
     },
+    /// An MQTT broker (`mqtt:HOST[:PORT]?topic=..&qos=..`).
+    Mqtt(MqttSpec),
 }
 
+const SINK_FORMS: &str =
+    "stdout, file:PATH, udp:HOST:PORT, serial:PATH?baud=N or mqtt:HOST[:PORT]?topic=T&..";
+
 impl SinkSpec {
-    /// Parses `stdout`, `file:PATH`, `udp:HOST:PORT` or `serial:PATH?baud=N`.
+    /// Parses `stdout`, `file:PATH`, `udp:HOST:PORT`, `serial:PATH?baud=N`
+    /// or `mqtt:HOST[:PORT]?...` (see [`MqttSpec::parse`]).
     pub fn parse(s: &str) -> Result<Self, String> {
         if s == "stdout" {
             return Ok(SinkSpec::Stdout);
         }
-        let (scheme, rest) = s.split_once(':').ok_or_else(|| {
-            format!("`{s}`: expected stdout, file:PATH, udp:HOST:PORT or serial:PATH?baud=N")
-        })?;
+        let (scheme, rest) = s
+            .split_once(':')
+            .ok_or_else(|| format!("`{s}`: expected {SINK_FORMS}"))?;
         match scheme {
             "file" if !rest.is_empty() => Ok(SinkSpec::File(rest.into())),
             "udp" => {
-                let (host, port) = rest.rsplit_once(':').ok_or_else(|| format!("`{s}`: expected udp:HOST:PORT"))?;
+                let (host, port) = rest
+                    .rsplit_once(':')
+                    .ok_or_else(|| format!("`{s}`: expected udp:HOST:PORT"))?;
                 if host.is_empty() || port.parse::<u16>().map_or(true, |p| p == 0) {
-                    return Err(format!("`{s}`: expected udp:HOST:PORT with a port in 1..=65535"));
+                    return Err(format!(
+                        "`{s}`: expected udp:HOST:PORT with a port in 1..=65535"
+                    ));
                 }
                 Ok(SinkSpec::Udp(rest.into()))
             }
@@ -53,12 +69,20 @@ impl SinkSpec {
                 for (k, v) in crate::source::query_pairs(query) {
                     match (k, v.parse::<u32>()) {
                         ("baud", Ok(b)) if (300..=4_000_000).contains(&b) => baud = b,
-                        _ => return Err(format!("`{s}`: serial option `{k}={v}` (expected baud=300..=4000000)")),
+                        _ => {
+                            return Err(format!(
+                                "`{s}`: serial option `{k}={v}` (expected baud=300..=4000000)"
+                            ))
+                        }
                     }
                 }
-                Ok(SinkSpec::Serial { path: path.into(), baud })
+                Ok(SinkSpec::Serial {
+                    path: path.into(),
+                    baud,
+                })
             }
-            _ => Err(format!("`{s}`: unknown sink (expected stdout, file:PATH, udp:HOST:PORT or serial:PATH?baud=N)")),
+            "mqtt" => MqttSpec::parse(rest).map(SinkSpec::Mqtt),
+            _ => Err(format!("`{s}`: unknown sink (expected {SINK_FORMS})")),
         }
     }
 }
@@ -73,14 +97,26 @@ pub enum Sink {
     Udp(UdpSocket, SocketAddr),
     /// A serial port.
     Serial(Box<dyn serialport::SerialPort>),
+    /// An MQTT broker, served by its own connection thread.
+    #[cfg(feature = "mqtt")]
+    Mqtt(Box<super::mqtt::link::MqttSink>),
 }
 
 /// How long a serial write may block before the record is dropped.
 const SERIAL_TIMEOUT: Duration = Duration::from_millis(200);
 
 impl Sink {
-    /// Opens the sink (at start-up: resolving names and opening files may allocate).
+    /// Opens the sink (at start-up: resolving names and opening files may
+    /// allocate). An `mqtt:` sink takes the default `[report.mqtt]` settings;
+    /// see [`Sink::open_with`].
     pub fn open(spec: &SinkSpec) -> io::Result<Sink> {
+        Sink::open_with(spec, &MqttConfig::default())
+    }
+
+    /// Opens the sink; an `mqtt:` sink merges its URI over `mqtt` (the
+    /// config file's `[report.mqtt]`) and the `STATURE_MQTT_USERNAME` /
+    /// `STATURE_MQTT_PASSWORD` environment variables over both.
+    pub fn open_with(spec: &SinkSpec, mqtt: &MqttConfig) -> io::Result<Sink> {
         Ok(match spec {
             SinkSpec::Stdout => Sink::Stdout(io::stdout()),
             SinkSpec::File(p) => Sink::File(io::BufWriter::with_capacity(
@@ -125,7 +161,62 @@ impl Sink {
                     })?;
                 Sink::Serial(port)
             }
+            SinkSpec::Mqtt(m) => {
+                let settings = MqttSettings::resolve(m, mqtt, |k| std::env::var(k).ok());
+                #[cfg(feature = "mqtt")]
+                {
+                    Sink::Mqtt(Box::new(super::mqtt::link::MqttSink::open(settings)?))
+                }
+                #[cfg(not(feature = "mqtt"))]
+                {
+                    return Err(io::Error::new(
+                        io::ErrorKind::Unsupported,
+                        format!(
+                            "MQTT sink {}: this build has no MQTT support (rebuild with `--features mqtt`)",
+                            settings.broker()
+                        ),
+                    ));
+                }
+            }
         })
+    }
+
+    /// Writes one record: `bytes` is `record` already encoded in `format`.
+    /// Byte-stream sinks write `bytes`; the MQTT sink routes by the
+    /// record's kind and always publishes JSON.
+    pub fn write(&mut self, record: &Record, bytes: &[u8], format: Format) -> io::Result<()> {
+        match self {
+            #[cfg(feature = "mqtt")]
+            Sink::Mqtt(m) => m.write(record, bytes, format),
+            _ => {
+                let _ = (record, format);
+                self.write_record(bytes)
+            }
+        }
+    }
+
+    /// Lets a sink that drops records on its own (MQTT, while the broker is
+    /// away) count them in the run's counters.
+    pub fn attach_counters(&mut self, counters: &Arc<Counters>) {
+        match self {
+            #[cfg(feature = "mqtt")]
+            Sink::Mqtt(m) => m.attach_counters(counters.clone()),
+            _ => {
+                let _ = counters;
+            }
+        }
+    }
+
+    /// End of run: flushes, and lets a sink with a session end it cleanly
+    /// (MQTT delivers held records within its shutdown timeout, publishes
+    /// `offline` and disconnects).
+    pub fn close(&mut self) -> io::Result<()> {
+        let r = self.flush();
+        #[cfg(feature = "mqtt")]
+        if let Sink::Mqtt(m) = self {
+            m.close();
+        }
+        r
     }
 
     /// Writes one encoded record. An error means the record was not delivered.
@@ -139,6 +230,11 @@ impl Sink {
             Sink::File(f) => f.write_all(bytes),
             Sink::Udp(sock, dest) => sock.send_to(bytes, *dest).map(|_| ()),
             Sink::Serial(port) => port.write_all(bytes),
+            #[cfg(feature = "mqtt")]
+            Sink::Mqtt(_) => Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "the MQTT sink needs the record itself: use Sink::write",
+            )),
         }
     }
 
@@ -158,6 +254,8 @@ impl Sink {
             Sink::File(_) => "file",
             Sink::Udp(..) => "udp",
             Sink::Serial(_) => "serial",
+            #[cfg(feature = "mqtt")]
+            Sink::Mqtt(_) => "mqtt",
         }
     }
 }
@@ -184,6 +282,10 @@ mod tests {
             SinkSpec::parse("file:/tmp/x.jsonl"),
             Ok(SinkSpec::File("/tmp/x.jsonl".into()))
         );
+        assert!(matches!(
+            SinkSpec::parse("mqtt:broker:1883?topic=stature/cam1&qos=1"),
+            Ok(SinkSpec::Mqtt(m)) if m.host == "broker" && m.port == Some(1883)
+        ));
         for bad in [
             "udp:host",
             "udp:host:0",
@@ -191,6 +293,9 @@ mod tests {
             "serial:ttyS0",
             "serial:/dev/ttyS0?baud=1",
             "tcp:x:1",
+            "mqtt:",
+            "mqtt:host:0",
+            "mqtt:host?user=x",
             "file:",
             "nope",
         ] {
