@@ -166,6 +166,9 @@ fn run_cmd(a: RunArgs) -> i32 {
 }
 
 fn run_pipeline(cfg: &Config) -> i32 {
+    if !cfg.board.name.is_empty() {
+        log::info!("board profile {}", cfg.board.name);
+    }
     let mut src = match source::open(&cfg.source.uri) {
         Ok(s) => s,
         Err(e) => {

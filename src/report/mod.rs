@@ -140,13 +140,23 @@ impl Reporter {
 
 /// Starts the I/O thread writing every record from `rx` to every sink.
 /// The thread ends when the queue is closed and drained.
+///
+/// Returns once the thread has made its one-time allocations, so that an
+/// allocation count taken afterwards sees only the steady state: the first
+/// time a thread blocks on a crossbeam channel it allocates (a cached
+/// thread-local wait context, the channel's waiter list); left to happen
+/// whenever the new thread first got scheduled, that raced with the loop's
+/// baseline and showed up as a few allocations in every `status` record
+/// (seen on an emulated aarch64 board reading vivid).
 pub fn spawn_io(
     rx: Receiver<Record>,
     mut sinks: Vec<Sink>,
     format: Format,
     counters: Arc<Counters>,
 ) -> std::thread::JoinHandle<()> {
-    std::thread::Builder::new()
+    let ready = Arc::new(std::sync::Barrier::new(2));
+    let ready_io = ready.clone();
+    let handle = std::thread::Builder::new()
         .name("stature-io".into())
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
@@ -182,6 +192,23 @@ pub fn spawn_io(
                     counters.delivered.fetch_add(1, Ordering::Relaxed);
                 }
             };
+            // Warm up: block on the (still empty) queue until a wait completes
+            // without allocating. Nothing is sent before the barrier, but
+            // deliver anything that came anyway. Bounded: 20 waits of 10 ms.
+            for _ in 0..20 {
+                let before = crate::alloc_count::allocations();
+                match rx.recv_timeout(std::time::Duration::from_millis(10)) {
+                    Ok(record) => deliver(record, &mut sinks),
+                    Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+                    Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
+                        if crate::alloc_count::allocations() == before {
+                            break;
+                        }
+                    }
+                }
+            }
+            ready_io.wait();
+            drop(ready_io);
             while let Ok(record) = rx.recv() {
                 deliver(record, &mut sinks);
                 while let Ok(record) = rx.try_recv() {
@@ -197,7 +224,9 @@ pub fn spawn_io(
                 }
             }
         })
-        .expect("spawning the I/O thread at start-up")
+        .expect("spawning the I/O thread at start-up");
+    ready.wait();
+    handle
 }
 
 #[cfg(test)]
