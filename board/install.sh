@@ -3,7 +3,8 @@
 #   sh install.sh --profile rpi4-aarch64.toml [--binary ./stature]
 #                 [--report udp:192.168.1.20:9000]... [--no-systemd]
 # Copies the binary to /usr/local/bin, the profile to /etc/stature/stature.toml
-# (with --report replacing its sinks), the unit to /etc/systemd/system, the
+# (--report replaces the profile's placeholder sink "udp:127.0.0.1:9000";
+# other sinks, e.g. a UART, stay), the unit to /etc/systemd/system, the
 # profile's [board] caps into a unit drop-in; creates the `stature` system
 # user in groups video and dialout; enables and starts the service.
 # Idempotent: run it again to upgrade the binary or change the profile.
@@ -85,7 +86,12 @@ cp "$binary" "$D/usr/local/bin/.stature.new"
 chmod 0755 "$D/usr/local/bin/.stature.new"
 mv -f "$D/usr/local/bin/.stature.new" "$D/usr/local/bin/stature"
 if [ -n "$reports" ]; then
-    sed "s|^sinks *=.*|sinks = [$reports]|" "$profile" >"$D/etc/stature/stature.toml.new"
+    # Profiles name the workstation as the placeholder udp:127.0.0.1:9000.
+    grep -q '"udp:127.0.0.1:9000"' "$profile" || {
+        echo "install.sh: $profile has no \"udp:127.0.0.1:9000\" sink for --report to replace" >&2
+        exit 2
+    }
+    sed "s|\"udp:127.0.0.1:9000\"|$reports|" "$profile" >"$D/etc/stature/stature.toml.new"
 else
     cp "$profile" "$D/etc/stature/stature.toml.new"
 fi

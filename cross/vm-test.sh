@@ -179,8 +179,20 @@ say "user: \$(id stature 2>&1)"
 exec_start=\$(sed -n 's/^ExecStart=//p' /etc/systemd/system/stature.service)
 say "ExecStart: \$exec_start"
 # (busybox su: switches uid, gid and supplementary groups like User=/SupplementaryGroups=)
-su -s /bin/sh -c "\$exec_start --frames 60" stature 2>>/dev/vport0p2
+# Peak RSS of the 1280x720 run as a real aarch64 kernel counts it (VmHWM,
+# read until the process ends; busybox's `time -v` over-reports it 4x).
+su -s /bin/sh -c "\$exec_start --frames 60" stature 2>>/dev/vport0p2 &
+supid=\$!
+hwm=""
+while kill -0 \$supid 2>/dev/null; do
+    p=\$(pidof stature)
+    h=\$([ -n "\$p" ] && sed -n 's/^VmHWM: *//p' /proc/\$p/status 2>/dev/null)
+    [ -n "\$h" ] && hwm=\$h
+    sleep 0.2
+done
+wait \$supid
 say "service run exit \$?"
+say "peak RSS VmHWM \$hwm"
 say "state dir: \$(ls -ld /var/lib/stature 2>&1)"
 say "done"
 sync

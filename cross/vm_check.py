@@ -100,8 +100,13 @@ ubye = next((r for r in udp if r.get("type") == "bye"), {})
 check(ubye.get("frames") == 60, f"60 frames reported over UDP (bye {ubye})")
 check("board profile rpi4-aarch64" in log, "log names the board profile")
 check("service run exit 0" in marks, "service command exited 0")
-check(marks.split("state dir:")[-1].split("\n")[0].split()[2:4] == ["stature", "stature"],
-      "state directory owned by the service user")
+# Peak RSS of the 1280x720 service run (VmHWM polled in the guest).
+hwm = [l.split()[-2] for l in marks.splitlines() if "peak RSS VmHWM" in l and l.endswith("kB")]
+check(bool(hwm), f"peak RSS measured in the guest ({hwm} kB)")
+if hwm:
+    kib = int(hwm[-1])
+    print(f"  peak RSS at 1280x720 YUYV on aarch64 (vivid, 60 frames): {kib} KiB = {kib / 1024:.1f} MiB")
+    check(kib <= 32 * 1024, "peak RSS within the 32 MiB target at 1280x720")
 
 if failures:
     print(f"vm-test: FAIL: {len(failures)} check(s) failed", file=sys.stderr)
