@@ -3,20 +3,23 @@
 # aarch64 board (qemu-system-aarch64 -M virt -cpu cortex-a57, TCG).
 #
 # Builds a tiny initramfs from Debian's arm64 packages (kernel modules from
-# linux-image-arm64, busybox-static) plus the static musl `stature` binary,
-# boots it, and inside the guest:
-#   1. loads vivid and runs `stature run --source v4l2:/dev/video0?...`;
-#   2. mid-run, unbinds the vivid platform device through sysfs (what a USB
-#      unplug looks like) and binds it again: the source must reconnect;
-#   3. deploys like a new user would (board/install.sh with the rpi4 profile
-#      and the systemd unit's ExecStart, run as the dedicated user through
-#      su), its UDP reports read on the host with `nc -ul` as the README says
-#      (qemu user networking: the guest's 10.0.2.2 is the host's loopback).
+# linux-image-arm64, busybox-static), the cross sysroots' glibc, and the three
+# release binaries (cross/build.sh), boots it, and inside the guest:
+#   1. loads vivid and runs the static musl build's
+#      `stature run --source v4l2:/dev/video0?...`; mid-run it unbinds the
+#      vivid platform device through sysfs (what a USB unplug looks like) and
+#      binds it again: the source must reconnect;
+#   2. captures with the armv7 build (32-bit compat ioctls on a 64-bit kernel);
+#   3. deploys the aarch64 glibc build like a new user would (board/install.sh
+#      with the rpi4 profile, the systemd unit's ExecStart run as the
+#      dedicated user through su), its UDP reports read on the host with
+#      `nc -ul` as the README says (qemu user networking: the guest's
+#      10.0.2.2 is the host's loopback), and measures its peak RSS.
 # Records leave the guest on virtio-serial ports (not the console, where
 # kernel messages would split them) and are checked here on the host.
 #
-#   cross/vm-test.sh               # build the musl binary if needed, run, check
-#   STATURE_BIN=path cross/vm-test.sh
+#   cross/vm-test.sh               # builds the musl binary if needed, runs, checks
+#   STATURE_BIN=path cross/vm-test.sh   # (also STATURE_GNU_BIN, STATURE_ARMV7_BIN)
 #   VM_FRAMES=300 cross/vm-test.sh
 #
 # Needs cross/install.sh. If the kernel package cannot be fetched the test
@@ -89,6 +92,13 @@ if [[ -z "${STATURE_BIN:-}" ]]; then
 fi
 [[ -x $musl_bin ]] || die "no binary at $musl_bin"
 file "$musl_bin" | grep -q 'statically linked' || die "$musl_bin is not statically linked"
+# The glibc builds (cross/build.sh) run too: aarch64-gnu is what the README
+# deploys to a Pi 4; armv7 exercises the kernel's 32-bit (compat) V4L2 ioctls.
+gnu_bin=${STATURE_GNU_BIN:-$target_dir/aarch64-unknown-linux-gnu/release/stature}
+armv7_bin=${STATURE_ARMV7_BIN:-$target_dir/armv7-unknown-linux-gnueabihf/release/stature}
+for b in "$gnu_bin" "$armv7_bin"; do
+    [[ -x $b ]] || die "no binary at $b (run cross/build.sh)"
+done
 
 # --- 3. The initramfs.
 # The host side of the README's `nc -ul 9000` listens on a free port.
@@ -111,8 +121,20 @@ for m in "${mods[@]}"; do
         cp "$kroot/$mdir/$f" "$root/$mdir/$f"
     done
 done
-# Deployment payload, as a user would scp it to the board.
-cp "$musl_bin" "$root/deploy/bin/stature"
+# glibc like a Debian board has it (multiarch layout, so that both fit).
+for pair in aarch64-linux-gnu:ld-linux-aarch64.so.1 arm-linux-gnueabihf:ld-linux-armhf.so.3; do
+    triplet=${pair%%:*} ld=${pair#*:}
+    mkdir -p "$root/lib/$triplet"
+    cp -L "/usr/$triplet/lib/$ld" "$root/lib/$ld"
+    for lib in libc.so.6 libgcc_s.so.1 libm.so.6; do
+        cp -L "/usr/$triplet/lib/$lib" "$root/lib/$triplet/"
+    done
+done
+cp "$musl_bin" "$root/bin/stature-musl"
+cp "$armv7_bin" "$root/bin/stature-armv7"
+# Deployment payload, as a user would scp it to the board (README: the
+# aarch64-unknown-linux-gnu build for a Pi 4).
+cp "$gnu_bin" "$root/deploy/bin/stature"
 cp "$repo"/board/*.toml "$repo/board/stature.service" "$repo/board/install.sh" "$root/deploy/board/"
 # A minimal passwd/group like a board image has (busybox adduser fills them in).
 printf 'root:x:0:0:root:/root:/bin/sh\n' >"$root/etc/passwd"
@@ -143,8 +165,8 @@ for i in 1 2 3 4 5 6 7 8 9 10; do [ -e /dev/video0 ] && break; sleep 0.2; done
 mdev -s
 say "devices: \$(ls /dev/video* 2>&1)"
 
-# Part 1: capture with an unplug/replug in the middle.
-/deploy/bin/stature run --config /etc/vm.toml \\
+# Part 1: capture with an unplug/replug in the middle (static musl build).
+/bin/stature-musl run --config /etc/vm.toml \\
     --source 'v4l2:/dev/video0?width=640&height=480&fps=25&format=YUYV' \\
     --frames $frames --report file:/dev/vport0p1 --report file:/tmp/r.jsonl \\
     2>/dev/vport0p2 &
@@ -165,6 +187,12 @@ mdev -s
 say "devices after replug: \$(ls -l /dev/video* 2>&1)"
 wait \$pid
 say "stature exit \$?"
+
+# Part 1b: the 32-bit armv7 build on the same device (compat ioctls).
+/bin/stature-armv7 run --config /etc/vm.toml \\
+    --source 'v4l2:/dev/video0?width=640&height=480&fps=25&format=YUYV' \\
+    --frames 50 --report file:/dev/vport0p4 2>>/dev/vport0p2
+say "armv7 exit \$?"
 
 # Part 2: deploy as the README says, on this "board".
 modprobe virtio_net
@@ -209,6 +237,7 @@ mkdir -p "$out"
 : >"$out/stderr.log"
 : >"$out/marks.log"
 : >"$out/udp.jsonl"
+: >"$out/armv7.jsonl"
 nc -dul 127.0.0.1 "$udp_port" >"$out/udp.jsonl" &
 nc_pid=$!
 trap 'kill $nc_pid 2>/dev/null || true' EXIT
@@ -227,6 +256,8 @@ timeout 600 qemu-system-aarch64 -M virt -cpu cortex-a57 -smp 2 -m 512 -accel tcg
     -device virtserialport,chardev=stderr,name=stderr,nr=2 \
     -chardev file,id=marks,path="$out/marks.log" \
     -device virtserialport,chardev=marks,name=marks,nr=3 \
+    -chardev file,id=armv7,path="$out/armv7.jsonl" \
+    -device virtserialport,chardev=armv7,name=armv7,nr=4 \
     >"$out/console.log" 2>&1 </dev/null
 rc=$?
 set -e

@@ -86,6 +86,19 @@ frames_seq = [s["frames"] for s in status]
 check(frames_seq == sorted(frames_seq), "frame counts never go back")
 check("stature exit 0" in marks, "stature exited 0")
 
+print("part 1b: the armv7 build on the same device (32-bit compat ioctls)")
+arm = records(out / "armv7.jsonl")
+ahello = next((r for r in arm if r.get("type") == "hello"), {})
+check(
+    (ahello.get("width"), ahello.get("height")) == (640, 480) and "YUYV" in ahello.get("source", ""),
+    f"armv7 negotiated 640x480 YUYV (hello {ahello})",
+)
+abye = next((r for r in arm if r.get("type") == "bye"), {})
+check(abye.get("frames") == 50, f"armv7 captured 50 frames (bye {abye})")
+astatus = [r["allocations"] for r in arm if r.get("type") == "status"]
+check(bool(astatus) and all(a == 0 for a in astatus), f"armv7 steady state allocates nothing ({astatus})")
+check("armv7 exit 0" in marks, "armv7 build exited 0")
+
 print("part 2: deployed with board/install.sh, run as the service user")
 check("install exit 0" in marks, "board/install.sh succeeded")
 check("uid=" in marks and "video" in marks.split("user:")[-1].split("\n")[0],
