@@ -14,20 +14,27 @@ pub fn shared_data_dir() -> Option<PathBuf> {
     dir.join("README.md").is_file().then_some(dir)
 }
 
-/// The shared data folder for a test: `None` (with a message) when missing
-/// locally; a panic when missing in CI (`CI` set), so that CI never passes
-/// silently without its data.
+/// The shared data folder for a test, with the tool that decodes its video
+/// (`ffmpeg`): `None` (with a message) when either is missing locally; a
+/// panic when missing in CI (`CI` set), so that CI never passes silently
+/// without its data.
 pub fn require_shared_data(what: &str) -> Option<PathBuf> {
-    match shared_data_dir() {
-        Some(d) => Some(d),
-        None if std::env::var_os("CI").is_some() => {
-            panic!("{what}: ../shared/data is missing in CI; the test cannot run without it")
-        }
-        None => {
-            eprintln!("skipping {what}: ../shared/data not found");
-            None
-        }
+    let ffmpeg = Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    let missing = match (shared_data_dir(), ffmpeg) {
+        (Some(d), true) => return Some(d),
+        (None, _) => "../shared/data is missing",
+        (Some(_), false) => "ffmpeg is not installed (apt-get install ffmpeg)",
+    };
+    if std::env::var_os("CI").is_some() {
+        panic!("{what}: {missing} in CI; the test cannot run without it");
     }
+    eprintln!("skipping {what}: {missing}");
+    None
 }
 
 /// One ground-truth person box of PETS 2009 S2.L1 (`gt.csv`).

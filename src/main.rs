@@ -31,6 +31,8 @@ enum Command {
     Demo(DemoArgs),
     /// Print or check configuration files.
     Config(ConfigArgs),
+    /// Render a simulated scene to Y4M, its ground truth to JSON, or a frame to PNG.
+    Sim(SimArgs),
 }
 
 #[derive(Args, Default)]
@@ -88,6 +90,37 @@ struct DemoArgs {
 }
 
 #[derive(Args)]
+struct SimArgs {
+    /// Describe the built-in scenes and exit.
+    #[arg(long)]
+    list: bool,
+    /// Scene name (see --list).
+    #[arg(long, default_value = "plaza")]
+    scene: String,
+    /// Seed of everything random in the scene.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Clip length in frames (default: the scene's).
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Write the clip as Y4M to this file (`-` for stdout).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the ground truth as JSON to this file.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// Write one frame as PNG to this file.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Frame written by --png.
+    #[arg(long, default_value_t = 0)]
+    png_frame: u64,
+    /// Draw the truth (boxes, head and foot points, horizon) on the PNG.
+    #[arg(long)]
+    annotate: bool,
+}
+
+#[derive(Args)]
 struct ConfigArgs {
     /// Print the documented default configuration.
     #[arg(long, conflicts_with = "check")]
@@ -107,6 +140,7 @@ fn main() {
         Some(Command::Demo(a)) => demo(a),
         Some(Command::Run(a)) => run_cmd(a),
         Some(Command::Config(a)) => config_cmd(a),
+        Some(Command::Sim(a)) => sim_cmd(a),
     };
     std::process::exit(code);
 }
@@ -169,13 +203,16 @@ fn run_pipeline(cfg: &Config) -> i32 {
     if !cfg.board.name.is_empty() {
         log::info!("board profile {}", cfg.board.name);
     }
-    let mut src = match source::open(&cfg.source.uri) {
-        Ok(s) => s,
+    match source::open(&cfg.source.uri) {
+        Ok(mut s) => run_source(cfg, s.as_mut()),
         Err(e) => {
             log::error!("{e}");
-            return e.exit_code();
+            e.exit_code()
         }
-    };
+    }
+}
+
+fn run_source(cfg: &Config, src: &mut dyn source::FrameSource) -> i32 {
     let mut sinks = Vec::new();
     for spec in &cfg.report.sinks {
         // Validated already; parse cannot fail here.
@@ -216,7 +253,7 @@ fn run_pipeline(cfg: &Config) -> i32 {
         stop: &stop,
         allocations: stature::alloc_count::allocations,
     };
-    let summary = run::run(cfg, src.as_mut(), &mut reporter, &opts);
+    let summary = run::run(cfg, src, &mut reporter, &opts);
     reporter.finish(Duration::from_secs(5));
     if io.join().is_err() {
         log::error!("the report thread failed");
@@ -241,18 +278,180 @@ fn run_pipeline(cfg: &Config) -> i32 {
 }
 
 fn demo(a: DemoArgs) -> i32 {
+    use stature::source::sim::{demo, SimSource};
     stature::logger::init(a.verbosity.level());
     let mut cfg = Config::default();
     if let Some(n) = a.frames {
         cfg.run.frames = n;
     }
-    match source::open(&cfg.source.uri) {
-        Ok(_) => run_pipeline(&cfg),
+    let sim = match SimSource::open_uri(&cfg.source.uri) {
+        Ok(s) => s,
         Err(e) => {
-            eprintln!("stature demo: {e}.");
-            eprintln!("Missing stages: simulated scene (issue 4), detection (5), classification (6), tracking/calibration/heights (7).");
-            eprintln!("Run on recorded frames instead: stature run --source y4m:FILE");
-            exit::OK
+            eprintln!("stature demo: {e}");
+            return e.exit_code();
         }
+    };
+    let total = match cfg.run.frames {
+        0 => sim.frames(),
+        n => n.min(sim.frames()),
+    };
+    eprintln!(
+        "stature demo: running the pipeline on {} ({} frames); records go to stdout",
+        cfg.source.uri, total
+    );
+    let mut progress = Progress {
+        inner: sim,
+        total,
+        done: 0,
+    };
+    let code = run_source(&cfg, &mut progress);
+    let sim = progress.inner;
+    let cast = sim.cast();
+    // Until the tracking, calibration and measurement stages report to the demo,
+    // nothing is estimated; say so rather than print numbers.
+    let table = demo::comparison_table(
+        sim.scene_truth(),
+        &cast,
+        &demo::Estimates {
+            calibration: None,
+            calibration_missing: "stage missing: calibrate",
+            heights: &[],
+            heights_missing: "stage missing: track/measure",
+        },
+    );
+    eprint!("{table}");
+    code
+}
+
+/// Wraps the demo's source to show progress on stderr.
+struct Progress {
+    inner: stature::source::sim::SimSource,
+    total: u64,
+    done: u64,
+}
+
+impl source::FrameSource for Progress {
+    fn info(&self) -> &source::SourceInfo {
+        self.inner.info()
+    }
+    fn next_frame(
+        &mut self,
+        frame: &mut stature::frame::Frame,
+    ) -> Result<source::Next, source::SourceError> {
+        let r = self.inner.next_frame(frame);
+        if let Ok(source::Next::Frame) = r {
+            self.done += 1;
+            if self.done % 25 == 0 || self.done == self.total {
+                eprint!(
+                    "\rstature demo: frame {}/{} ({}%)",
+                    self.done,
+                    self.total,
+                    self.done * 100 / self.total.max(1)
+                );
+                if self.done == self.total {
+                    eprintln!();
+                }
+            }
+        }
+        r
+    }
+    fn state(&self) -> source::SourceState {
+        self.inner.state()
+    }
+}
+
+fn sim_cmd(a: SimArgs) -> i32 {
+    use source::sim::{export, scene, SimOptions, SimSource};
+    use std::io::Write;
+    if a.list {
+        for s in scene::scenes() {
+            println!("{:<6} {}", s.name, s.about);
+        }
+        return exit::OK;
+    }
+    let Some(spec) = scene::find(&a.scene) else {
+        eprintln!(
+            "error: unknown scene `{}` (see stature sim --list)",
+            a.scene
+        );
+        return exit::BAD_INPUT;
+    };
+    if a.frames == Some(0) {
+        eprintln!("error: --frames must be at least 1");
+        return exit::BAD_INPUT;
+    }
+    let opts = SimOptions {
+        seed: a.seed,
+        frames: a.frames,
+        ..SimOptions::default()
+    };
+    let mut sim = SimSource::new(spec, &opts);
+    let fail = |what: &dyn std::fmt::Display, e: std::io::Error| {
+        eprintln!("error: {what}: {e}");
+        exit::UNAVAILABLE
+    };
+    if let Some(path) = &a.png {
+        if a.png_frame >= sim.frames() {
+            eprintln!(
+                "error: --png-frame {} is past the clip ({} frames)",
+                a.png_frame,
+                sim.frames()
+            );
+            return exit::BAD_INPUT;
+        }
+        let mut frame = stature::frame::Frame::new(source::FrameSource::info(&sim).size);
+        sim.render(a.png_frame, &mut frame);
+        let mut rgb = export::to_rgb(&frame);
+        if a.annotate {
+            export::annotate(&mut rgb, &sim);
+        }
+        let written = std::fs::File::create(path).and_then(|f| {
+            export::write_png(std::io::BufWriter::new(f), &rgb, spec.width, spec.height)
+        });
+        if let Err(e) = written {
+            return fail(&path.display(), e);
+        }
+    }
+    if a.out.is_none() && a.truth.is_none() {
+        if a.png.is_none() {
+            eprintln!("error: nothing to do: give --out, --truth, --png or --list");
+            return exit::BAD_INPUT;
+        }
+        return exit::OK;
+    }
+    let open = |p: &PathBuf| -> std::io::Result<Box<dyn Write>> {
+        if p.as_os_str() == "-" {
+            Ok(Box::new(std::io::BufWriter::new(std::io::stdout().lock())))
+        } else {
+            Ok(Box::new(std::io::BufWriter::new(std::fs::File::create(p)?)))
+        }
+    };
+    let mut y4m = match a.out.as_ref().map(open).transpose() {
+        Ok(w) => w,
+        Err(e) => return fail(&"cannot create the clip", e),
+    };
+    let mut truth = match a.truth.as_ref().map(open).transpose() {
+        Ok(w) => w,
+        Err(e) => return fail(&"cannot create the truth file", e),
+    };
+    let total = sim.frames();
+    let result = export::export(
+        &mut sim,
+        y4m.as_deref_mut().map(|w| w as &mut dyn Write),
+        truth.as_deref_mut().map(|w| w as &mut dyn Write),
+        |k| {
+            if (k + 1) % 50 == 0 || k + 1 == total {
+                eprint!("\rstature sim: frame {}/{}", k + 1, total);
+            }
+        },
+    )
+    .and_then(|_| y4m.as_mut().map_or(Ok(()), |w| w.flush()))
+    .and_then(|_| truth.as_mut().map_or(Ok(()), |w| w.flush()));
+    if total > 0 {
+        eprintln!();
+    }
+    match result {
+        Ok(()) => exit::OK,
+        Err(e) => fail(&"writing failed", e),
     }
 }

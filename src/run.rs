@@ -28,11 +28,11 @@ impl Pipeline {
     /// Allocates everything the loop will ever need for `info`'s frames.
     pub fn new(cfg: &Config, info: &SourceInfo) -> Self {
         let size = info.size;
-        let max_regions = 64;
+        let max_regions = cfg.detect.region_capacity();
         Pipeline {
             frame: Frame::new(size),
             detector: Detector::new(&cfg.detect, size),
-            regions: RegionSet::with_capacity(max_regions, size.height * 16),
+            regions: RegionSet::with_capacity(max_regions, cfg.detect.run_capacity(size)),
             classifier: Classifier::new(&cfg.classify),
             verdicts: Vec::with_capacity(max_regions),
             max_classified: max_regions,

@@ -40,7 +40,10 @@ fn the_three_board_classes_have_profiles() {
         .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
         .collect();
     for want in ["rpi4-aarch64", "rpi-zero2", "generic-armv7"] {
-        assert!(names.iter().any(|n| n == want), "board/{want}.toml missing: {names:?}");
+        assert!(
+            names.iter().any(|n| n == want),
+            "board/{want}.toml missing: {names:?}"
+        );
     }
 }
 
@@ -51,17 +54,38 @@ fn every_profile_loads_and_validates() {
     for path in &profiles {
         let cfg = Config::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let stem = path.file_stem().unwrap().to_string_lossy();
-        assert_eq!(cfg.board.name, stem, "{}: [board] name is the file name", path.display());
+        assert_eq!(
+            cfg.board.name,
+            stem,
+            "{}: [board] name is the file name",
+            path.display()
+        );
         assert_ne!(cfg, Config::default(), "{}", path.display());
         // A board profile is for a camera: a V4L2 source with an explicit mode.
         let uri = &cfg.source.uri;
-        assert!(uri.starts_with("v4l2:/dev/video"), "{}: source {uri}", path.display());
+        assert!(
+            uri.starts_with("v4l2:/dev/video"),
+            "{}: source {uri}",
+            path.display()
+        );
         for key in ["width=", "height=", "fps=", "format="] {
-            assert!(uri.contains(key), "{}: source {uri} lacks {key}", path.display());
+            assert!(
+                uri.contains(key),
+                "{}: source {uri} lacks {key}",
+                path.display()
+            );
         }
         // Caps the service manager enforces.
-        assert!(cfg.board.memory_max_mib >= 32, "{}: memory cap", path.display());
-        assert!(cfg.board.cpu_quota_percent > 0, "{}: cpu cap", path.display());
+        assert!(
+            cfg.board.memory_max_mib >= 32,
+            "{}: memory cap",
+            path.display()
+        );
+        assert!(
+            cfg.board.cpu_quota_percent > 0,
+            "{}: cpu cap",
+            path.display()
+        );
         assert!(
             cfg.report.sinks.iter().any(|s| s.starts_with("udp:")),
             "{}: a UDP sink that install.sh --report can point at the workstation",
@@ -122,7 +146,10 @@ fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
     assert_eq!(unit_values(&unit, "User"), ["stature"]);
     let groups = unit_values(&unit, "SupplementaryGroups").join(" ");
     for g in ["video", "dialout"] {
-        assert!(groups.split_whitespace().any(|x| x == g), "SupplementaryGroups lacks {g}");
+        assert!(
+            groups.split_whitespace().any(|x| x == g),
+            "SupplementaryGroups lacks {g}"
+        );
     }
     assert_eq!(unit_values(&unit, "Restart"), ["on-failure"]);
     assert_eq!(unit_values(&unit, "NoNewPrivileges"), ["yes"]);
@@ -134,7 +161,10 @@ fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
     // ExecStart names the path board/install.sh writes the profile to.
     let exec = unit_values(&unit, "ExecStart").join(" ");
     assert!(exec.starts_with("/usr/local/bin/stature run "), "{exec}");
-    assert!(exec.contains("--config /etc/stature/stature.toml"), "{exec}");
+    assert!(
+        exec.contains("--config /etc/stature/stature.toml"),
+        "{exec}"
+    );
     let install = std::fs::read_to_string(board_dir().join("install.sh")).unwrap();
     assert!(install.contains("/etc/stature/stature.toml"));
     assert!(install.contains("/usr/local/bin/stature"));

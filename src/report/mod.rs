@@ -154,8 +154,7 @@ pub fn spawn_io(
     format: Format,
     counters: Arc<Counters>,
 ) -> std::thread::JoinHandle<()> {
-    let ready = Arc::new(std::sync::Barrier::new(2));
-    let ready_io = ready.clone();
+    let (ready_tx, ready_rx) = bounded::<()>(1);
     let handle = std::thread::Builder::new()
         .name("stature-io".into())
         .spawn(move || {
@@ -192,23 +191,33 @@ pub fn spawn_io(
                     counters.delivered.fetch_add(1, Ordering::Relaxed);
                 }
             };
-            // Warm up: block on the (still empty) queue until a wait completes
-            // without allocating. Nothing is sent before the barrier, but
-            // deliver anything that came anyway. Bounded: 20 waits of 10 ms.
-            for _ in 0..20 {
-                let before = crate::alloc_count::allocations();
-                match rx.recv_timeout(std::time::Duration::from_millis(10)) {
-                    Ok(record) => deliver(record, &mut sinks),
-                    Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
-                    Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
-                        if crate::alloc_count::allocations() == before {
-                            break;
+            // Warm up: block on the (still empty) queue until one wait has
+            // allocated and the next has not. A timed-out wait does not always
+            // reach the blocking path (the spin/yield phase runs before the
+            // deadline is looked at, and under load can outlast it), so a
+            // single quiet wait proves nothing; and it must be this channel,
+            // whose waiter list grows on its first blocking receive. Nothing
+            // is sent before `ready`; deliver anything that came anyway.
+            // Skipped when the counting allocator is not installed (its count
+            // stays 0); bounded: at most 100 waits of 20 ms.
+            if crate::alloc_count::allocations() > 0 {
+                let mut allocated = false;
+                for _ in 0..100 {
+                    let before = crate::alloc_count::allocations();
+                    match rx.recv_timeout(std::time::Duration::from_millis(20)) {
+                        Ok(record) => deliver(record, &mut sinks),
+                        Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+                        Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
+                            let quiet = crate::alloc_count::allocations() == before;
+                            if allocated && quiet {
+                                break;
+                            }
+                            allocated |= !quiet;
                         }
                     }
                 }
             }
-            ready_io.wait();
-            drop(ready_io);
+            let _ = ready_tx.send(());
             while let Ok(record) = rx.recv() {
                 deliver(record, &mut sinks);
                 while let Ok(record) = rx.try_recv() {
@@ -225,7 +234,8 @@ pub fn spawn_io(
             }
         })
         .expect("spawning the I/O thread at start-up");
-    ready.wait();
+    // An error means the thread died before it was ready; `join` reports it.
+    let _ = ready_rx.recv();
     handle
 }
 

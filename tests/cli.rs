@@ -1,0 +1,321 @@
+//! The `stature` binary as a user runs it: options, config files, sources,
+//! sinks, exit codes and messages.
+
+use stature::frame::Size;
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+mod common;
+use common::stature_bin;
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("stature-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn write_clip(name: &str, frames: usize) -> std::path::PathBuf {
+    let p = tmp(name);
+    std::fs::write(
+        &p,
+        common::synthetic_y4m(
+            Size {
+                width: 64,
+                height: 48,
+            },
+            frames,
+        ),
+    )
+    .unwrap();
+    p
+}
+
+fn records(stdout: &[u8]) -> Vec<serde_json::Value> {
+    stdout
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.is_empty())
+        .map(|l| serde_json::from_slice(l).expect("stdout holds only JSON records"))
+        .collect()
+}
+
+fn run(args: &[&str]) -> std::process::Output {
+    Command::new(stature_bin())
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn y4m_file_streams_hello_status_bye_to_stdout_and_udp() {
+    let clip = write_clip("a.y4m", 30);
+    let udp = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    udp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
+    let port = udp.local_addr().unwrap().port();
+    let out = run(&[
+        "run",
+        "--source",
+        &format!("y4m:{}", clip.display()),
+        "--report",
+        &format!("udp:127.0.0.1:{port}"),
+        "--report",
+        "stdout",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let recs = records(&out.stdout);
+    let kinds: Vec<&str> = recs.iter().map(|r| r["type"].as_str().unwrap()).collect();
+    assert_eq!(kinds.first(), Some(&"hello"));
+    assert_eq!(kinds.last(), Some(&"bye"));
+    assert!(kinds.contains(&"status"));
+    assert_eq!(recs[0]["width"], 64);
+    assert_eq!(recs[0]["fps"], 25.0);
+    assert_eq!(recs.last().unwrap()["frames"], 30);
+    let mut buf = [0u8; 2048];
+    let n = udp.recv(&mut buf).unwrap();
+    let first: serde_json::Value = serde_json::from_slice(&buf[..n]).unwrap();
+    assert_eq!(first, recs[0], "UDP carries the same records");
+}
+
+#[test]
+fn stdin_source_reads_a_pipe() {
+    let clip = std::fs::read(write_clip("b.y4m", 12)).unwrap();
+    let mut child = Command::new(stature_bin())
+        .args(["run", "--source", "y4m:-", "-q"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(&clip).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(records(&out.stdout).last().unwrap()["frames"], 12);
+}
+
+#[test]
+fn frame_limit_stops_early_with_bye() {
+    let clip = write_clip("c.y4m", 20);
+    let out = run(&[
+        "run",
+        "--source",
+        &format!("y4m:{}", clip.display()),
+        "--frames",
+        "7",
+    ]);
+    assert!(out.status.success());
+    let recs = records(&out.stdout);
+    assert_eq!(recs.last().unwrap()["type"], "bye");
+    assert_eq!(recs.last().unwrap()["frames"], 7);
+}
+
+#[test]
+fn truncated_stream_is_exit_2_with_frame_and_offset_and_final_records() {
+    let clip = write_clip("d.y4m", 5);
+    let mut bytes = std::fs::read(&clip).unwrap();
+    bytes.truncate(bytes.len() - 100);
+    std::fs::write(&clip, bytes).unwrap();
+    let out = run(&["run", "--source", &format!("y4m:{}", clip.display())]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("frame 4") && err.contains("byte offset") && err.contains("truncated"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    let recs = records(&out.stdout);
+    assert_eq!(
+        recs.last().unwrap()["type"],
+        "status",
+        "final status still sent, no bye after an error"
+    );
+    assert_eq!(recs.last().unwrap()["source"], "ended");
+}
+
+#[test]
+fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
+    let good = write_clip("e.y4m", 2);
+    let src = format!("y4m:{}", good.display());
+    let bad_toml = tmp("bad.toml");
+    std::fs::write(&bad_toml, "[report]\nqueue = 2\n").unwrap();
+    let unknown = tmp("unknown.toml");
+    std::fs::write(&unknown, "[detect]\nhistroy = 5\n").unwrap();
+    let garbage = tmp("garbage.y4m");
+    std::fs::write(&garbage, b"GIF89a not a y4m\n").unwrap();
+    let cases: Vec<(Vec<String>, i32, &str)> = vec![
+        (
+            vec!["--source".into(), "y4m:/nonexistent/x.y4m".into()],
+            3,
+            "cannot open Y4M file",
+        ),
+        (
+            vec!["--source".into(), format!("y4m:{}", garbage.display())],
+            2,
+            "YUV4MPEG2 signature",
+        ),
+        (
+            vec!["--source".into(), "rtsp://cam".into()],
+            2,
+            "unknown scheme",
+        ),
+        (
+            vec!["--source".into(), "v4l2:/dev/video-nope".into()],
+            3,
+            "V4L2",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "tcp:1.2.3.4:5".into(),
+            ],
+            2,
+            "report.sinks",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "file:/nonexistent-dir/x.jsonl".into(),
+            ],
+            3,
+            "report file",
+        ),
+        (
+            vec!["--config".into(), "/nonexistent.toml".into()],
+            2,
+            "readable TOML",
+        ),
+        (
+            vec!["--config".into(), bad_toml.display().to_string()],
+            2,
+            "report.queue",
+        ),
+        (
+            vec!["--config".into(), unknown.display().to_string()],
+            2,
+            "histroy",
+        ),
+    ];
+    for (args, code, want) in cases {
+        let mut full = vec!["run".to_string()];
+        full.extend(args.iter().cloned());
+        let out = Command::new(stature_bin())
+            .args(&full)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            err.lines().filter(|l| l.contains("ERROR")).count() == 1,
+            "{args:?}: one error line expected: {err}"
+        );
+    }
+}
+
+#[test]
+fn printed_defaults_check_clean_and_postcard_format_is_binary() {
+    let out = run(&["config", "--print-defaults"]);
+    assert!(out.status.success());
+    let p = tmp("defaults.toml");
+    std::fs::write(&p, &out.stdout).unwrap();
+    let check = run(&["config", "--check", &p.display().to_string()]);
+    assert!(
+        check.status.success(),
+        "{}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let clip = write_clip("f.y4m", 3);
+    let out = run(&[
+        "run",
+        "--source",
+        &format!("y4m:{}", clip.display()),
+        "--format",
+        "postcard",
+        "-q",
+    ]);
+    assert!(out.status.success());
+    assert_eq!(
+        out.stdout.last(),
+        Some(&0),
+        "COBS frames end with a zero byte"
+    );
+    let frames = out
+        .stdout
+        .split(|&b| b == 0)
+        .filter(|f| !f.is_empty())
+        .count();
+    assert!(frames >= 3, "hello, status, bye: {frames}");
+}
+
+#[test]
+fn sigterm_stops_cleanly_with_bye() {
+    // A pipe that stays open: the run waits for frames until the signal.
+    let mut child = Command::new(stature_bin())
+        .args(["run", "--source", "y4m:-", "-q"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let clip = common::synthetic_y4m(
+        Size {
+            width: 64,
+            height: 48,
+        },
+        4,
+    );
+    stdin.write_all(&clip).unwrap();
+    stdin.flush().unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args(["-TERM", &pid])
+        .status()
+        .unwrap()
+        .success());
+    // A blocked pipe read cannot see the flag until its frame arrives: keep
+    // feeding frames (never closing the pipe) until the process exits.
+    let one = common::synthetic_y4m(
+        Size {
+            width: 64,
+            height: 48,
+        },
+        1,
+    );
+    let frame = &one[one.iter().position(|&b| b == b'\n').unwrap() + 1..];
+    let mut sent = 4;
+    while child.try_wait().unwrap().is_none() && sent < 2000 {
+        if stdin.write_all(frame).is_err() {
+            break;
+        }
+        sent += 1;
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(sent < 2000, "the process ignored SIGTERM");
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let recs = records(&out.stdout);
+    assert_eq!(recs.last().unwrap()["type"], "bye");
+    // The pipe was never closed, so only the signal can have ended the run.
+    assert!(recs.last().unwrap()["frames"].as_u64().unwrap() <= sent);
+    drop(stdin);
+}
