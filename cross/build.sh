@@ -3,7 +3,8 @@
 #   aarch64-unknown-linux-gnu      Raspberry Pi 4 / Zero 2 (64-bit OS), most Cortex-A53+ SoCs
 #   armv7-unknown-linux-gnueabihf  32-bit ARMv7 hard-float boards
 #   aarch64-unknown-linux-musl     fully static aarch64 (minimal images, the vivid VM test)
-# Output: $CARGO_TARGET_DIR/<target>/release/stature (default target dir ./target).
+# Output: $CARGO_TARGET_DIR/<target>/release/stature (default target dir ./target),
+# with the `v4l2` feature (camera capture) that board builds need.
 #
 #   cross/build.sh                 # all three
 #   cross/build.sh aarch64-unknown-linux-gnu
@@ -16,7 +17,7 @@ fi
 target_dir=${CARGO_TARGET_DIR:-target}
 for t in "${targets[@]}"; do
     echo "cross/build.sh: $t"
-    cargo build --release --locked --target "$t" --bin stature
+    cargo build --release --locked --features v4l2 --target "$t" --bin stature
     bin=$target_dir/$t/release/stature
     # Size as shipped: the release profile keeps line tables (debug = 1) for
     # backtraces; `strip` drops them for the board if space is tight.

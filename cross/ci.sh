@@ -1,16 +1,14 @@
 #!/usr/bin/env bash
 # The ARM part of CI (called by .ci/run after the host build and tests, with
 # the same CARGO_TARGET_DIR so nothing is built twice):
-#   install -> three release binaries -> test suite under qemu-user
-#   (aarch64 full, armv7 lib + fast tests; see cross/test.sh) -> bit-exact
+#   install -> three release binaries -> test suite under qemu-user, release
+#   profile reusing the binaries' dependency builds (aarch64 everything,
+#   armv7 all but the PETS data-set tests; see cross/test.sh) -> bit-exact
 #   report streams across targets -> vivid VM test on the musl binary.
 # Each step prints its wall time; the total is in bench/RESULTS.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$PWD/target}
-# Line tables are enough for test backtraces and halve the cross links.
-export CARGO_PROFILE_TEST_DEBUG=${CARGO_PROFILE_TEST_DEBUG:-line-tables-only}
-export CARGO_PROFILE_DEV_DEBUG=${CARGO_PROFILE_DEV_DEBUG:-line-tables-only}
 
 t0=$(date +%s)
 step() {

@@ -88,7 +88,7 @@ fi
 # --- 2. The static musl binary.
 musl_bin=${STATURE_BIN:-$target_dir/aarch64-unknown-linux-musl/release/stature}
 if [[ -z "${STATURE_BIN:-}" ]]; then
-    (cd "$repo" && cargo build --release --locked --target aarch64-unknown-linux-musl --bin stature)
+    (cd "$repo" && cargo build --release --locked --features v4l2 --target aarch64-unknown-linux-musl --bin stature)
 fi
 [[ -x $musl_bin ]] || die "no binary at $musl_bin"
 file "$musl_bin" | grep -q 'statically linked' || die "$musl_bin is not statically linked"
