@@ -291,6 +291,9 @@ fn run_cmd(a: RunArgs) -> i32 {
 }
 
 fn run_pipeline(cfg: &Config) -> i32 {
+    if !cfg.board.name.is_empty() {
+        log::info!("board profile {}", cfg.board.name);
+    }
     match source::open(&cfg.source.uri) {
         Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new())),
         Err(e) => {
