@@ -134,7 +134,7 @@ fn profiles_write_only_where_the_hardened_unit_allows() {
                     "{}: serial sink {dev} needs group dialout",
                     path.display()
                 ),
-                SinkSpec::Stdout | SinkSpec::Udp(_) => {}
+                SinkSpec::Stdout | SinkSpec::Udp(_) | SinkSpec::Mqtt(_) => {}
             }
         }
     }
