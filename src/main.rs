@@ -288,7 +288,10 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
         allocations: stature::alloc_count::allocations,
     };
     let mut summary = run::run(cfg, src, &mut reporter, &opts);
-    *outcome = (summary.calibration.take(), core::mem::take(&mut summary.heights));
+    *outcome = (
+        summary.calibration.take(),
+        core::mem::take(&mut summary.heights),
+    );
     reporter.finish(Duration::from_secs(5));
     if io.join().is_err() {
         log::error!("the report thread failed");
