@@ -368,9 +368,10 @@ fn demo(a: DemoArgs) -> i32 {
         &cast,
         &demo::Estimates {
             calibration: outcome.0.as_ref(),
-            calibration_missing: "too few single-person observations for a calibration",
+            calibration_missing:
+                "too few single-person observations (a stub classifier finds none)",
             heights: &heights,
-            heights_missing: "no track reached the calibration confidence and sample count",
+            heights_missing: "no person track was measured",
         },
     );
     eprint!("{table}");
