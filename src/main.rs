@@ -351,7 +351,10 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
         allocations: stature::alloc_count::allocations,
     };
     let mut summary = run::run(cfg, src, &mut reporter, &opts);
-    *outcome = (summary.calibration.take(), core::mem::take(&mut summary.heights));
+    *outcome = (
+        summary.calibration.take(),
+        core::mem::take(&mut summary.heights),
+    );
     reporter.finish(Duration::from_secs(5));
     if io.join().is_err() {
         log::error!("the report thread failed");
@@ -428,9 +431,10 @@ fn demo(a: DemoArgs) -> i32 {
         &cast,
         &demo::Estimates {
             calibration: outcome.0.as_ref(),
-            calibration_missing: "too few single-person observations for a calibration",
+            calibration_missing:
+                "too few single-person observations (a stub classifier finds none)",
             heights: &heights,
-            heights_missing: "no track reached the calibration confidence and sample count",
+            heights_missing: "no person track was measured",
         },
     );
     eprint!("{table}");
