@@ -164,6 +164,9 @@ struct TrainArgs {
     /// Only evaluate this weight blob on the held-out data (no training).
     #[arg(long)]
     evaluate: Option<PathBuf>,
+    /// Leave the simulated scenes out of training.
+    #[arg(long)]
+    no_sim: bool,
 }
 
 #[derive(Args)]
@@ -594,7 +597,11 @@ fn train_cmd(a: TrainArgs) -> i32 {
                 return exit::BAD_INPUT;
             }
         };
-        return match train::evaluate_pets(&data_dir, &model, a.seed) {
+        let ev = train::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
+            ev.rows.extend(train::evaluate_sim(&model, a.seed)?.rows);
+            Ok(ev)
+        });
+        return match ev {
             Ok(ev) => {
                 print!("{}\n{}", ev.table(), ev.det_table());
                 exit::OK
@@ -637,6 +644,7 @@ fn train_cmd(a: TrainArgs) -> i32 {
         select: a.select.clamp(0.01, 1.0),
         pets_stride: a.pets_stride.max(1),
         eval: a.eval,
+        sim: !a.no_sim,
     };
     let (model, report) = match train::train(&opts) {
         Ok(r) => r,
