@@ -23,6 +23,7 @@ pkgs=(
     qemu-user-static:qemu-aarch64-static
     clang:clang
     libclang-dev:/usr/lib/llvm-14/lib/libclang.so
+    time:/usr/bin/time
 )
 if [[ $want_vm -eq 1 ]]; then
     pkgs+=(busybox-static:/bin/busybox kmod:depmod cpio:cpio netcat-openbsd:nc)

@@ -100,7 +100,19 @@ for b in "$gnu_bin" "$armv7_bin"; do
     [[ -x $b ]] || die "no binary at $b (run cross/build.sh)"
 done
 
-# --- 3. The initramfs.
+# --- 3. The unit as systemd reads it (the guest has no systemd): every
+# directive known and valid, ExecStart pointed at a binary that exists here.
+if command -v systemd-analyze >/dev/null; then
+    unitdir=$work/unit
+    mkdir -p "$unitdir"
+    sed "s|/usr/local/bin/stature|$musl_bin|" "$repo/board/stature.service" >"$unitdir/stature.service"
+    if ! msg=$(systemd-analyze verify "$unitdir/stature.service" 2>&1) || [[ -n $msg ]]; then
+        die "systemd-analyze verify board/stature.service: $msg"
+    fi
+    echo "vm-test: board/stature.service verifies with systemd-analyze"
+fi
+
+# --- 4. The initramfs.
 # The host side of the README's `nc -ul 9000` listens on a free port.
 udp_port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 root=$work/root
@@ -229,7 +241,7 @@ EOF
 chmod +x "$root/init"
 (cd "$root" && find . | cpio -o -H newc --quiet | gzip -1) >"$work/initramfs.gz"
 
-# --- 4. Boot.
+# --- 5. Boot.
 out=$work/out
 rm -rf "$out"
 mkdir -p "$out"
@@ -266,7 +278,7 @@ kill $nc_pid 2>/dev/null || true
 echo "vm-test: guest ran $(($(date +%s) - start)) s (qemu exit $rc)"
 [[ $rc -eq 0 ]] || { tail -30 "$out/console.log"; die "qemu exited $rc"; }
 
-# --- 5. Checks, on the host.
+# --- 6. Checks, on the host.
 if ! grep -q "VMTEST: done" "$out/marks.log"; then
     tail -40 "$out/console.log"
     die "the guest did not finish its script (console above)"
