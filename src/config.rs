@@ -18,28 +18,33 @@ pub struct ConfigError {
     pub key: String,
     /// The offending value as written.
     pub value: String,
-    /// What would have been accepted, e.g. `an integer in 10..=100000`.
-    pub expected: String,
+    /// Why it was refused, e.g. `expected a value in 10..=100000`.
+    pub reason: String,
 }
 
 impl ConfigError {
     /// Builds an error for `key` = `value`, expecting `expected`.
     pub fn new(key: &str, value: impl fmt::Display, expected: impl fmt::Display) -> Self {
+        Self::invalid(key, value, format_args!("expected {expected}"))
+    }
+    /// Builds an error for `key` = `value` with a complete reason.
+    pub fn invalid(key: &str, value: impl fmt::Display, reason: impl fmt::Display) -> Self {
         ConfigError {
             key: key.into(),
             value: value.to_string(),
-            expected: expected.to_string(),
+            reason: reason.to_string(),
         }
     }
 }
 
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "config key `{}` = {}: expected {}",
-            self.key, self.value, self.expected
-        )
+        let what = if self.key.starts_with('-') {
+            "option"
+        } else {
+            "config key"
+        };
+        write!(f, "{what} `{}` = {}: {}", self.key, self.value, self.reason)
     }
 }
 impl std::error::Error for ConfigError {}
@@ -181,10 +186,7 @@ impl Default for RunConfig {
 impl Config {
     /// Parses TOML text; unknown keys and bad types are errors.
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        let cfg: Config = toml::from_str(text).map_err(|e| {
-            let msg = e.message().to_string();
-            ConfigError::new("(file)", "", msg)
-        })?;
+        let cfg: Config = toml::from_str(text).map_err(|e| parse_error(text, &e))?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -233,6 +235,39 @@ impl Config {
         self.calibrate.validate()?;
         self.measure.validate()?;
         Ok(())
+    }
+}
+
+/// Turns a TOML error into one line naming the dotted key and the value.
+fn parse_error(text: &str, e: &toml::de::Error) -> ConfigError {
+    let msg = e.message().trim().replace('\n', " ");
+    let Some(span) = e.span() else {
+        return ConfigError::invalid("(file)", "", msg);
+    };
+    let start = span.start.min(text.len());
+    let line_start = text[..start].rfind('\n').map_or(0, |i| i + 1);
+    let line_no = text[..start].matches('\n').count() + 1;
+    let line = text[line_start..].lines().next().unwrap_or("");
+    // The innermost [table] header above the offending line.
+    let table = text[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('[') && !l.starts_with("[["))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    match line.split_once('=') {
+        Some((k, v)) if !line.trim_start().starts_with('[') => {
+            let key = match table {
+                Some(t) => format!("{t}.{}", k.trim()),
+                None => k.trim().to_string(),
+            };
+            ConfigError::invalid(&key, v.trim(), format_args!("{msg} (line {line_no})"))
+        }
+        _ => ConfigError::invalid(
+            "(file)",
+            line.trim(),
+            format_args!("{msg} (line {line_no})"),
+        ),
     }
 }
 

@@ -35,6 +35,7 @@ pub mod config;
 pub mod dataset;
 pub mod frame;
 pub mod logger;
+pub mod rng;
 
 pub mod source;
 

@@ -31,6 +31,10 @@ enum Command {
     Demo(DemoArgs),
     /// Print or check configuration files.
     Config(ConfigArgs),
+    /// Train the region classifier and write its weight blob.
+    Train(TrainArgs),
+    /// Render a simulated scene to Y4M, its ground truth to JSON, or a frame to PNG.
+    Sim(SimArgs),
 }
 
 #[derive(Args, Default)]
@@ -76,8 +80,90 @@ struct RunArgs {
     /// Stop after N frames.
     #[arg(long)]
     frames: Option<u64>,
+    /// Classifier weight blob (default: the built-in weights).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    #[command(flatten)]
+    scale: ScaleArgs,
     #[command(flatten)]
     verbosity: Verbosity,
+}
+
+/// How heights get their metric scale (see `calibrate::ScaleMode`).
+#[derive(Args, Default)]
+struct ScaleArgs {
+    /// Known camera mounting height in metres (best absolute heights).
+    #[arg(long, value_name = "METRES")]
+    camera_height: Option<f64>,
+    /// Height of the first person tracked (walk through alone), metres.
+    #[arg(long, value_name = "METRES")]
+    reference_height: Option<f64>,
+    /// Mean height of the people who pass (default 1.70), metres.
+    #[arg(long, value_name = "METRES")]
+    prior_height: Option<f64>,
+}
+
+impl ScaleArgs {
+    fn apply(&self, cfg: &mut Config) {
+        if let Some(h) = self.camera_height {
+            cfg.calibrate.camera_height_m = h;
+        }
+        if let Some(h) = self.reference_height {
+            cfg.calibrate.reference_height_m = h;
+        }
+        if let Some(h) = self.prior_height {
+            cfg.calibrate.prior_height_m = h;
+        }
+    }
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// Data folder (default: ../shared/data beside the crate).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Where to write the weight blob.
+    #[arg(long, default_value = "weights/classifier.bin")]
+    out: PathBuf,
+    /// Where to write the Markdown training report (default: stdout only).
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Window size WxH in pixels.
+    #[arg(long, default_value = "32x64")]
+    window: String,
+    /// Margin above and below the box, 1/256 of its height.
+    #[arg(long, default_value_t = 43)]
+    margin: u16,
+    /// HOG cell side, pixels.
+    #[arg(long, default_value_t = 4)]
+    hog_cell: u8,
+    /// LBP cell side, pixels.
+    #[arg(long, default_value_t = 8)]
+    lbp_cell: u8,
+    /// LBP comparison offset, grey levels.
+    #[arg(long, default_value_t = 2)]
+    lbp_threshold: u8,
+    /// Feature set: hog+lbp, hog or lbp.
+    #[arg(long, default_value = "hog+lbp")]
+    features: String,
+    /// SVM C (default: chosen by cross-validation).
+    #[arg(long)]
+    c: Option<f64>,
+    /// Share of HOG blocks / LBP cells kept by weight magnitude (Park et al.).
+    #[arg(long, default_value_t = 1.0)]
+    select: f64,
+    /// Use every n-th PETS training frame for the base set.
+    #[arg(long, default_value_t = 2)]
+    pets_stride: u32,
+    /// Also evaluate on the held-out PETS frames (600-794).
+    #[arg(long)]
+    eval: bool,
+    /// Only evaluate this weight blob on the held-out data (no training).
+    #[arg(long)]
+    evaluate: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -87,6 +173,37 @@ struct DemoArgs {
     frames: Option<u64>,
     #[command(flatten)]
     verbosity: Verbosity,
+}
+
+#[derive(Args)]
+struct SimArgs {
+    /// Describe the built-in scenes and exit.
+    #[arg(long)]
+    list: bool,
+    /// Scene name (see --list).
+    #[arg(long, default_value = "plaza")]
+    scene: String,
+    /// Seed of everything random in the scene.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Clip length in frames (default: the scene's).
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Write the clip as Y4M to this file (`-` for stdout).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the ground truth as JSON to this file.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// Write one frame as PNG to this file.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Frame written by --png.
+    #[arg(long, default_value_t = 0)]
+    png_frame: u64,
+    /// Draw the truth (boxes, head and foot points, horizon) on the PNG.
+    #[arg(long)]
+    annotate: bool,
 }
 
 #[derive(Args)]
@@ -109,6 +226,8 @@ fn main() {
         Some(Command::Demo(a)) => demo(a),
         Some(Command::Run(a)) => run_cmd(a),
         Some(Command::Config(a)) => config_cmd(a),
+        Some(Command::Train(a)) => train_cmd(a),
+        Some(Command::Sim(a)) => sim_cmd(a),
     };
     std::process::exit(code);
 }
@@ -151,6 +270,10 @@ fn resolve_config(a: &RunArgs) -> Result<Config, ConfigError> {
     if let Some(n) = a.frames {
         cfg.run.frames = n;
     }
+    if let Some(w) = &a.weights {
+        cfg.classify.weights = w.display().to_string();
+    }
+    a.scale.apply(&mut cfg);
     cfg.validate()?;
     Ok(cfg)
 }
@@ -168,13 +291,22 @@ fn run_cmd(a: RunArgs) -> i32 {
 }
 
 fn run_pipeline(cfg: &Config) -> i32 {
-    let mut src = match source::open(&cfg.source.uri) {
-        Ok(s) => s,
+    match source::open(&cfg.source.uri) {
+        Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new())),
         Err(e) => {
             log::error!("{e}");
-            return e.exit_code();
+            e.exit_code()
         }
-    };
+    }
+}
+
+/// What the demo compares with the truth: final calibration and heights.
+type Outcome = (
+    Option<stature::report::record::Calibration>,
+    Vec<stature::report::record::Height>,
+);
+
+fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Outcome) -> i32 {
     let mut sinks = Vec::new();
     for spec in &cfg.report.sinks {
         // Validated already; parse cannot fail here.
@@ -215,7 +347,8 @@ fn run_pipeline(cfg: &Config) -> i32 {
         stop: &stop,
         allocations: stature::alloc_count::allocations,
     };
-    let summary = run::run(cfg, src.as_mut(), &mut reporter, &opts);
+    let mut summary = run::run(cfg, src, &mut reporter, &opts);
+    *outcome = (summary.calibration.take(), core::mem::take(&mut summary.heights));
     reporter.finish(Duration::from_secs(5));
     if io.join().is_err() {
         log::error!("the report thread failed");
@@ -240,18 +373,282 @@ fn run_pipeline(cfg: &Config) -> i32 {
 }
 
 fn demo(a: DemoArgs) -> i32 {
+    use stature::source::sim::{demo, SimSource};
     stature::logger::init(a.verbosity.level());
     let mut cfg = Config::default();
     if let Some(n) = a.frames {
         cfg.run.frames = n;
     }
-    match source::open(&cfg.source.uri) {
-        Ok(_) => run_pipeline(&cfg),
+    let sim = match SimSource::open_uri(&cfg.source.uri) {
+        Ok(s) => s,
         Err(e) => {
-            eprintln!("stature demo: {e}.");
-            eprintln!("Missing stages: simulated scene (issue 4), detection (5), classification (6), tracking/calibration/heights (7).");
-            eprintln!("Run on recorded frames instead: stature run --source y4m:FILE");
-            exit::OK
+            eprintln!("stature demo: {e}");
+            return e.exit_code();
+        }
+    };
+    let total = match cfg.run.frames {
+        0 => sim.frames(),
+        n => n.min(sim.frames()),
+    };
+    eprintln!(
+        "stature demo: running the pipeline on {} ({} frames); records go to stdout",
+        cfg.source.uri, total
+    );
+    let mut progress = Progress {
+        inner: sim,
+        total,
+        done: 0,
+    };
+    let mut outcome = (None, Vec::new());
+    let code = run_source(&cfg, &mut progress, &mut outcome);
+    let sim = progress.inner;
+    let cast = sim.cast();
+    // Each final height is matched to the person whose true foot is nearest
+    // the track's last foot point in its last frame.
+    let heights: Vec<demo::HeightEstimate> = outcome
+        .1
+        .iter()
+        .map(|h| demo::HeightEstimate {
+            track_id: h.track_id,
+            height_m: f64::from(h.height_m),
+            person_id: sim
+                .person_at(
+                    h.frame,
+                    [f64::from(h.foot_px[0]), f64::from(h.foot_px[1])],
+                    25.0,
+                )
+                .map(|m| m.id),
+        })
+        .collect();
+    let table = demo::comparison_table(
+        sim.scene_truth(),
+        &cast,
+        &demo::Estimates {
+            calibration: outcome.0.as_ref(),
+            calibration_missing: "too few single-person observations for a calibration",
+            heights: &heights,
+            heights_missing: "no track reached the calibration confidence and sample count",
+        },
+    );
+    eprint!("{table}");
+    code
+}
+
+/// Wraps the demo's source to show progress on stderr.
+struct Progress {
+    inner: stature::source::sim::SimSource,
+    total: u64,
+    done: u64,
+}
+
+impl source::FrameSource for Progress {
+    fn info(&self) -> &source::SourceInfo {
+        self.inner.info()
+    }
+    fn next_frame(
+        &mut self,
+        frame: &mut stature::frame::Frame,
+    ) -> Result<source::Next, source::SourceError> {
+        let r = self.inner.next_frame(frame);
+        if let Ok(source::Next::Frame) = r {
+            self.done += 1;
+            if self.done % 25 == 0 || self.done == self.total {
+                eprint!(
+                    "\rstature demo: frame {}/{} ({}%)",
+                    self.done,
+                    self.total,
+                    self.done * 100 / self.total.max(1)
+                );
+                if self.done == self.total {
+                    eprintln!();
+                }
+            }
+        }
+        r
+    }
+    fn state(&self) -> source::SourceState {
+        self.inner.state()
+    }
+}
+
+fn sim_cmd(a: SimArgs) -> i32 {
+    use source::sim::{export, scene, SimOptions, SimSource};
+    use std::io::Write;
+    if a.list {
+        for s in scene::scenes() {
+            println!("{:<6} {}", s.name, s.about);
+        }
+        return exit::OK;
+    }
+    let Some(spec) = scene::find(&a.scene) else {
+        eprintln!(
+            "error: unknown scene `{}` (see stature sim --list)",
+            a.scene
+        );
+        return exit::BAD_INPUT;
+    };
+    if a.frames
+        .is_some_and(|n| n == 0 || n > source::sim::MAX_FRAMES)
+    {
+        eprintln!("error: --frames must be in 1..={}", source::sim::MAX_FRAMES);
+        return exit::BAD_INPUT;
+    }
+    let opts = SimOptions {
+        seed: a.seed,
+        frames: a.frames,
+        ..SimOptions::default()
+    };
+    let mut sim = SimSource::new(spec, &opts);
+    let fail = |what: &dyn std::fmt::Display, e: std::io::Error| {
+        eprintln!("error: {what}: {e}");
+        exit::UNAVAILABLE
+    };
+    if let Some(path) = &a.png {
+        if a.png_frame >= sim.frames() {
+            eprintln!(
+                "error: --png-frame {} is past the clip ({} frames)",
+                a.png_frame,
+                sim.frames()
+            );
+            return exit::BAD_INPUT;
+        }
+        let mut frame = stature::frame::Frame::new(source::FrameSource::info(&sim).size);
+        sim.render(a.png_frame, &mut frame);
+        let mut rgb = export::to_rgb(&frame);
+        if a.annotate {
+            export::annotate(&mut rgb, &sim);
+        }
+        let written = std::fs::File::create(path).and_then(|f| {
+            export::write_png(std::io::BufWriter::new(f), &rgb, spec.width, spec.height)
+        });
+        if let Err(e) = written {
+            return fail(&path.display(), e);
         }
     }
+    if a.out.is_none() && a.truth.is_none() {
+        if a.png.is_none() {
+            eprintln!("error: nothing to do: give --out, --truth, --png or --list");
+            return exit::BAD_INPUT;
+        }
+        return exit::OK;
+    }
+    let open = |p: &PathBuf| -> std::io::Result<Box<dyn Write>> {
+        if p.as_os_str() == "-" {
+            Ok(Box::new(std::io::BufWriter::new(std::io::stdout().lock())))
+        } else {
+            Ok(Box::new(std::io::BufWriter::new(std::fs::File::create(p)?)))
+        }
+    };
+    let mut y4m = match a.out.as_ref().map(open).transpose() {
+        Ok(w) => w,
+        Err(e) => return fail(&"cannot create the clip", e),
+    };
+    let mut truth = match a.truth.as_ref().map(open).transpose() {
+        Ok(w) => w,
+        Err(e) => return fail(&"cannot create the truth file", e),
+    };
+    let total = sim.frames();
+    let result = export::export(
+        &mut sim,
+        y4m.as_deref_mut().map(|w| w as &mut dyn Write),
+        truth.as_deref_mut().map(|w| w as &mut dyn Write),
+        |k| {
+            if (k + 1) % 50 == 0 || k + 1 == total {
+                eprint!("\rstature sim: frame {}/{}", k + 1, total);
+            }
+        },
+    )
+    .and_then(|_| y4m.as_mut().map_or(Ok(()), |w| w.flush()))
+    .and_then(|_| truth.as_mut().map_or(Ok(()), |w| w.flush()));
+    if total > 0 {
+        eprintln!();
+    }
+    match result {
+        Ok(()) => exit::OK,
+        Err(e) => fail(&"writing failed", e),
+    }
+}
+
+fn train_cmd(a: TrainArgs) -> i32 {
+    use stature::classify::{layout::Layout, train};
+    let Some(data_dir) = a.data.or_else(stature::dataset::shared_data_dir) else {
+        eprintln!("error: no data folder (give --data DIR)");
+        return exit::BAD_INPUT;
+    };
+    if let Some(path) = &a.evaluate {
+        let cfg = stature::classify::ClassifyConfig {
+            weights: path.display().to_string(),
+            ..Default::default()
+        };
+        let model = match cfg.load_model() {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return exit::BAD_INPUT;
+            }
+        };
+        return match train::evaluate_pets(&data_dir, &model, a.seed) {
+            Ok(ev) => {
+                print!("{}\n{}", ev.table(), ev.det_table());
+                exit::OK
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                exit::BAD_INPUT
+            }
+        };
+    }
+    let Some((w, h)) = a
+        .window
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+    else {
+        eprintln!("error: --window {}: expected WxH, e.g. 32x64", a.window);
+        return exit::BAD_INPUT;
+    };
+    let mut layout = match Layout::full(w, h, a.margin, a.hog_cell, a.lbp_cell, a.lbp_threshold) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return exit::BAD_INPUT;
+        }
+    };
+    match a.features.as_str() {
+        "hog+lbp" => {}
+        "hog" => layout.lbp_cells.fill(false),
+        "lbp" => layout.hog_blocks.fill(false),
+        f => {
+            eprintln!("error: --features {f}: expected hog+lbp, hog or lbp");
+            return exit::BAD_INPUT;
+        }
+    }
+    let opts = train::TrainOptions {
+        data_dir,
+        layout,
+        seed: a.seed,
+        c: a.c,
+        select: a.select.clamp(0.01, 1.0),
+        pets_stride: a.pets_stride.max(1),
+        eval: a.eval,
+    };
+    let (model, report) = match train::train(&opts) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return exit::BAD_INPUT;
+        }
+    };
+    print!("{report}");
+    if let Err(e) = std::fs::write(&a.out, model.to_bytes()) {
+        eprintln!("error: cannot write {}: {e}", a.out.display());
+        return exit::UNAVAILABLE;
+    }
+    if let Some(r) = &a.report {
+        if let Err(e) = std::fs::write(r, &report) {
+            eprintln!("error: cannot write {}: {e}", r.display());
+            return exit::UNAVAILABLE;
+        }
+    }
+    eprintln!("wrote {}", a.out.display());
+    exit::OK
 }

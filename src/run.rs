@@ -1,11 +1,15 @@
 //! The vision loop: owns every buffer, calls the stages in data-flow order,
 //! and hands records to the reporter. Nothing here allocates per frame.
 
+use crate::calibrate::state::StateFile;
+use crate::calibrate::Calibrator;
 use crate::classify::{Classifier, Verdict};
+use crate::measure::Measurer;
+use crate::track::Tracker;
 use crate::config::Config;
 use crate::detect::{Detector, RegionSet};
 use crate::frame::Frame;
-use crate::report::record::{self, Bye, Hello, Record, Status};
+use crate::report::record::{self, Bye, Calibration, Height, Hello, Record, Status};
 use crate::report::Reporter;
 use crate::source::{FrameSource, Next, SourceError, SourceInfo, SourceState};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,43 +24,156 @@ pub struct Pipeline {
     classifier: Classifier,
     verdicts: Vec<Verdict>,
     max_classified: usize,
+    tracker: Tracker,
+    calib: Calibrator,
+    measurer: Measurer,
+    fps: f64,
+    /// The last calibration record sent (the final one after `finish`).
+    pub calibration: Option<Calibration>,
+    /// Final heights of ended tracks, for summaries (the first
+    /// [`FINAL_HEIGHTS_KEPT`]; all are reported regardless).
+    pub final_heights: Vec<Height>,
     /// Frames processed.
     pub frames: u64,
 }
+
+/// Final heights a [`Pipeline`] keeps for its summary.
+pub const FINAL_HEIGHTS_KEPT: usize = 1024;
 
 impl Pipeline {
     /// Allocates everything the loop will ever need for `info`'s frames.
     pub fn new(cfg: &Config, info: &SourceInfo) -> Self {
         let size = info.size;
-        let max_regions = 64;
+        let max_regions = cfg.detect.region_capacity();
         Pipeline {
             frame: Frame::new(size),
             detector: Detector::new(&cfg.detect, size),
-            regions: RegionSet::with_capacity(max_regions, size.height * 16),
-            classifier: Classifier::new(&cfg.classify),
+            regions: RegionSet::with_capacity(max_regions, cfg.detect.run_capacity(size)),
+            // The configuration was validated, weights included; should the
+            // file have changed since, no region is called a person.
+            classifier: Classifier::new(&cfg.classify).unwrap_or_else(|e| {
+                log::error!("{e}; every region will be rejected");
+                Classifier::reject_all(&cfg.classify)
+            }),
             verdicts: Vec::with_capacity(max_regions),
-            max_classified: max_regions,
+            max_classified: cfg.classify.max_regions.min(max_regions),
+            tracker: Tracker::new(&cfg.track, max_regions),
+            calib: Self::calibrator(cfg, info),
+            measurer: Measurer::new(&cfg.measure, crate::track::RING),
+            fps: if info.fps_f64() > 0.0 { info.fps_f64() } else { 25.0 },
+            calibration: None,
+            final_heights: Vec::with_capacity(FINAL_HEIGHTS_KEPT),
             frames: 0,
         }
     }
 
+    /// The calibrator, resumed from the state file when there is a usable one.
+    fn calibrator(cfg: &Config, info: &SourceInfo) -> Calibrator {
+        let mut c = Calibrator::new(&cfg.calibrate, info.size.width, info.size.height);
+        c.set_fps(info.fps_f64());
+        if !cfg.run.state.is_empty() {
+            let k = cfg.calibrate.tracks * cfg.calibrate.anchors_per_track;
+            // About 110 bytes of JSON per anchor.
+            let file = StateFile::new(std::path::Path::new(&cfg.run.state), 4096 + 128 * k);
+            match file.load() {
+                Ok(Some(saved)) => {
+                    let n = c.resume(&saved);
+                    log::info!("calibration state {}: resumed {n} observations", cfg.run.state);
+                }
+                Ok(None) => log::info!("calibration state {}: new file", cfg.run.state),
+                Err(e) => log::warn!("calibration state {}: {e}; starting afresh", cfg.run.state),
+            }
+            c.state = Some(file);
+        }
+        c
+    }
+
+    /// The current calibration estimate.
+    pub fn estimate(&self) -> Option<&crate::calibrate::Estimate> {
+        self.calib.estimate()
+    }
+
+    /// The tracker (for snapshots and tests).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// Heights of live and just-ended tracks: a record for every track
+    /// due (or every one with `all`), final for ended tracks.
+    fn heights(&mut self, reporter: &mut Reporter, frame: u64, all: bool) {
+        let est = self.calib.estimate().copied();
+        let interval = u64::from(self.measurer.config().report_interval);
+        for t in self.tracker.tracks_mut() {
+            let due = t.ended || all || (t.fresh.is_some() && frame >= t.last_report + interval);
+            if !due {
+                continue;
+            }
+            let Some(c) = self.measurer.track_height(est.as_ref(), t.sample_iter()) else {
+                continue;
+            };
+            t.last_report = frame;
+            let b = t.bbox;
+            let h = Height {
+                // A final height is dated to the last frame the person was
+                // seen, where its head/foot points were taken.
+                frame: if t.ended { t.last_seen } else { frame },
+                track_id: t.id,
+                height_m: c.height as f32,
+                samples: c.samples,
+                foot_px: [t.last.foot[0] as f32, t.last.foot[1] as f32],
+                head_px: [t.last.head[0] as f32, t.last.head[1] as f32],
+                bbox: [b.x0, b.y0, b.x1, b.y1],
+                is_final: t.ended,
+            };
+            if t.ended && self.final_heights.len() < FINAL_HEIGHTS_KEPT {
+                self.final_heights.push(h.clone());
+            }
+            reporter.send(Record::Height(h));
+        }
+    }
+
     /// Runs every stage on [`Pipeline::frame`] and queues the records it yields.
-    pub fn process(&mut self, _reporter: &mut Reporter) {
+    pub fn process(&mut self, reporter: &mut Reporter) {
+        let frame = self.frames;
         self.detector.process(&self.frame, &mut self.regions);
         self.verdicts.clear();
         let luma = self.frame.luma();
-        for region in self.regions.regions().iter().take(self.max_classified) {
+        let regions = self.regions.regions();
+        for region in regions.iter().take(self.max_classified) {
             self.verdicts.push(self.classifier.classify(luma, region));
         }
+        self.classifier
+            .note_skipped(regions.len().saturating_sub(self.max_classified));
+        self.tracker
+            .step(frame, self.fps, &self.frame, &self.regions, &self.verdicts);
+        for t in self.tracker.tracks() {
+            if let Some(hf) = t.fresh {
+                self.calib.observe(frame, t.id, hf);
+            }
+        }
+        if let Some(c) = self.calib.update(frame) {
+            self.calibration = Some(c.clone());
+            reporter.send(Record::Calibration(c));
+        }
+        self.heights(reporter, frame, false);
         self.frames += 1;
     }
 
-    /// End of stream: queues final calibration and heights.
-    pub fn finish(&mut self, _reporter: &mut Reporter) {}
+    /// End of stream: queues the final calibration, then every live
+    /// track's final height measured with it.
+    pub fn finish(&mut self, reporter: &mut Reporter) {
+        let frame = self.frames;
+        if let Some(c) = self.calib.finish(frame) {
+            self.calibration = Some(c.clone());
+            reporter.send(Record::Calibration(c));
+        }
+        self.tracker.end_all();
+        self.heights(reporter, frame, true);
+    }
 
     /// People tracked now.
     pub fn tracks(&self) -> u32 {
-        0
+        self.tracker.live()
     }
 }
 
@@ -69,6 +186,10 @@ pub struct Summary {
     pub stopped_by: StopReason,
     /// The source error that ended the run, if any (final records were still sent).
     pub error: Option<SourceError>,
+    /// The final calibration, if the run produced one.
+    pub calibration: Option<Calibration>,
+    /// Final per-person heights (see [`FINAL_HEIGHTS_KEPT`]).
+    pub heights: Vec<Height>,
 }
 
 /// Why the loop ended.
@@ -192,5 +313,7 @@ pub fn run(
         frames: p.frames,
         stopped_by,
         error,
+        calibration: p.calibration.take(),
+        heights: core::mem::take(&mut p.final_heights),
     }
 }

@@ -137,7 +137,14 @@ fn udp_sink_delivers_every_record_in_both_formats() {
     }
 }
 
+// The two serial scenarios run in one test, one after the other: each uses
+// its own pseudo-terminal pair, and the pair is created under a lock anyway.
 #[test]
+fn serial_sink_delivers_and_survives_a_stuck_reader() {
+    serial_sink_over_a_pseudo_terminal_in_both_formats();
+    serial_reader_that_stops_reading_drops_records_instead_of_stalling_the_loop();
+}
+
 fn serial_sink_over_a_pseudo_terminal_in_both_formats() {
     for format in [Format::Json, Format::Postcard] {
         let (_guard, mut master, slave, path) = pty_pair();
@@ -150,13 +157,15 @@ fn serial_sink_over_a_pseudo_terminal_in_both_formats() {
         let reader = std::thread::spawn(move || {
             let mut all = Vec::new();
             let mut buf = [0u8; 4096];
-            master.set_timeout(Duration::from_secs(5)).unwrap();
-            loop {
+            master.set_timeout(Duration::from_millis(200)).unwrap();
+            let deadline = std::time::Instant::now() + Duration::from_secs(10);
+            while std::time::Instant::now() < deadline {
+                // A read that times out (nothing written yet) is retried.
                 let n = match master.read(&mut buf) {
                     Ok(n) => n,
-                    Err(e) => {
-                        eprintln!("pty read: {e:?}");
-                        break;
+                    Err(_) => {
+                        std::thread::sleep(Duration::from_millis(10));
+                        continue;
                     }
                 };
                 all.extend_from_slice(&buf[..n]);
@@ -176,8 +185,10 @@ fn serial_sink_over_a_pseudo_terminal_in_both_formats() {
         });
         let (summary, _, ds) = run_into(vec![sink], format, 40, 0.4);
         assert_eq!((summary.frames, ds), (40, 0));
-        drop(slave);
+        // Keep a slave handle open until the reader is done: once the last
+        // one closes, the master reports a hang-up before the unread data.
         let bytes = reader.join().unwrap();
+        drop(slave);
         let records: Vec<Record> = match format {
             Format::Json => bytes
                 .split(|&b| b == b'\n')
@@ -232,7 +243,6 @@ fn unreachable_udp_destination_neither_blocks_nor_crashes() {
     assert!(summary.error.is_none());
 }
 
-#[test]
 fn serial_reader_that_stops_reading_drops_records_instead_of_stalling_the_loop() {
     let (_guard, master, _slave, path) = pty_pair();
     // Nobody reads `master`: fill the terminal's buffer first, so that every

@@ -158,11 +158,12 @@ pub fn spawn_io(
             for s in sinks.iter_mut() {
                 s.attach_counters(&counters);
             }
-            // crossbeam allocates a thread's blocking context the first time
-            // it waits: wait once now, on an empty channel, so that happens
-            // during start-up and not in the middle of the run.
-            let (_keep, warm) = bounded::<()>(1);
-            let _ = warm.recv_timeout(std::time::Duration::from_micros(1));
+            // crossbeam allocates the first time a thread parks, and the
+            // first time a channel's waker registers a waiter: park once on
+            // this very channel now (nothing is queued yet, so it times out;
+            // 2 ms is past crossbeam's spinning phase) so that both happen
+            // during start-up rather than in the middle of the run.
+            let early = rx.recv_timeout(std::time::Duration::from_millis(2)).ok();
             let _ = ready_tx.send(());
             let mut deliver = |record: Record, sinks: &mut Vec<Sink>| {
                 let bytes = match encode::encode(&record, format, &mut buf) {
@@ -195,6 +196,9 @@ pub fn spawn_io(
                     counters.delivered.fetch_add(1, Ordering::Relaxed);
                 }
             };
+            if let Some(record) = early {
+                deliver(record, &mut sinks);
+            }
             while let Ok(record) = rx.recv() {
                 deliver(record, &mut sinks);
                 while let Ok(record) = rx.try_recv() {

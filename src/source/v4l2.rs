@@ -6,8 +6,8 @@
 //! reopened device that comes back at a different size is refused until it
 //! returns to the original one, so buffers never change after start-up.
 
-use super::{query_pairs, FrameSource, Next, SourceError, SourceInfo, SourceState};
-use crate::frame::{Frame, Size};
+use super::{query_pairs, FrameSource, Next, SourceError, SourceInfo};
+use crate::frame::Frame;
 
 /// Requested capture mode.
 #[derive(Clone, Debug, PartialEq)]
@@ -114,7 +114,9 @@ impl FrameSource for V4l2Source {
 #[cfg(feature = "v4l2")]
 mod device {
     use super::*;
+    use crate::frame::Size;
     use crate::source::convert;
+    use crate::source::SourceState;
     use std::time::{Duration, Instant};
     use v4l::buffer::Type;
     use v4l::io::mmap::Stream;

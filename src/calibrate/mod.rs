@@ -1,0 +1,729 @@
+//! Self-calibration from walking people (paper §3.2, METHOD.md §4–5).
+//!
+//! Tracked people give head/foot observations. The calibrator keeps a
+//! bounded, spatially thinned store of them ("anchors": a track adds one
+//! only after its foot moved [`CalibrateConfig::anchor_step_px`], so a
+//! loitering person cannot dominate, and each track keeps at most
+//! [`CalibrateConfig::anchors_per_track`]). Every
+//! [`CalibrateConfig::refit_interval`] frames with new anchors it refits:
+//!
+//! 1. vertical vanishing point `v`: RANSAC over head–foot lines, then
+//!    reweighted least squares on the inliers ([`geometry::fit_vvp`]);
+//! 2. horizon: for every pair of well-separated anchors of one track, the
+//!    head–head and foot–foot lines meet on the horizon; with the principal
+//!    point at the centre the horizon is perpendicular to `p→v`, so each
+//!    pair measures one number, its distance `d` from `p`; RANSAC and an
+//!    inverse-variance weighted mean give `d` ([`geometry::fit_offset`]);
+//! 3. eq. 3: `f² = d·|v−p|`, `tan θ = f/|v−p|`, roll `= atan2(v_x, v_y)`;
+//! 4. metric scale, in one of three documented ways (see [`ScaleMode`]);
+//! 5. a confidence in 0..1 from inlier counts, precision of `d`, spatial
+//!    spread and stability between refits.
+//!
+//! A calibration record is produced when the estimate changes materially
+//! (thresholds in the config), and a final one at the end. The store and the
+//! estimate persist in a state file ([`state`]).
+
+pub mod geometry;
+pub mod state;
+pub mod synth;
+
+use crate::config::{check_range, ConfigError};
+use crate::report::record::Calibration;
+use crate::rng::Rng;
+use geometry::{golden, Degeneracy, HeadFoot, Normaliser, OffsetSample, ViewGeometry, VvpParams};
+use serde::{Deserialize, Serialize};
+
+/// `[calibrate]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CalibrateConfig {
+    /// Scale mode (a): mean standing height of the people who pass, metres.
+    pub prior_height_m: f64,
+    /// Scale mode (b): known camera mounting height, metres (0 = unknown).
+    pub camera_height_m: f64,
+    /// Scale mode (c): height of the first person tracked long enough
+    /// (the installer walking through alone), metres (0 = not used).
+    pub reference_height_m: f64,
+    /// Head/foot localisation noise assumed by the fits, pixels.
+    pub noise_px: f64,
+    /// Vertical vanishing point inlier threshold, pixels.
+    pub vvp_inlier_px: f64,
+    /// RANSAC hypotheses per refit.
+    pub ransac_iterations: usize,
+    /// A track adds an anchor after its foot moved this far, pixels.
+    pub anchor_step_px: f64,
+    /// Anchors kept per track (the store holds `tracks × this`).
+    pub anchors_per_track: usize,
+    /// Tracks kept in the store (the oldest is replaced when full).
+    pub tracks: usize,
+    /// Anchors of one track pair up for the horizon when their feet are
+    /// at least this many person extents apart.
+    pub pair_separation: f64,
+    /// Frames between refits (when new anchors arrived).
+    pub refit_interval: u32,
+    /// Below this tilt the view is "near level" (degrees).
+    pub min_tilt_deg: f64,
+    /// Above this tilt the view is "near vertical" (degrees).
+    pub max_tilt_deg: f64,
+    /// A calibration record is sent when the focal length moves by this
+    /// fraction, or an angle by `emit_angle_deg`, or the confidence by 0.05.
+    pub emit_focal_change: f64,
+    /// Angle change that triggers a calibration record, degrees.
+    pub emit_angle_deg: f64,
+    /// Seconds of stream time between state file writes (when changed).
+    pub state_interval_s: f64,
+    /// RANSAC seed (replays are deterministic).
+    pub seed: u64,
+}
+
+impl Default for CalibrateConfig {
+    fn default() -> Self {
+        CalibrateConfig {
+            prior_height_m: 1.70,
+            camera_height_m: 0.0,
+            reference_height_m: 0.0,
+            noise_px: 1.5,
+            vvp_inlier_px: 3.0,
+            ransac_iterations: 300,
+            anchor_step_px: 6.0,
+            anchors_per_track: 32,
+            tracks: 64,
+            pair_separation: 0.5,
+            refit_interval: 10,
+            min_tilt_deg: 4.0,
+            max_tilt_deg: 60.0,
+            emit_focal_change: 0.01,
+            emit_angle_deg: 0.25,
+            state_interval_s: 30.0,
+            seed: 1,
+        }
+    }
+}
+
+impl CalibrateConfig {
+    /// Checks every value against its accepted range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("calibrate.prior_height_m", self.prior_height_m, 0.5..=2.5)?;
+        check_range(
+            "calibrate.camera_height_m",
+            self.camera_height_m,
+            0.0..=100.0,
+        )?;
+        check_range(
+            "calibrate.reference_height_m",
+            self.reference_height_m,
+            0.0..=2.5,
+        )?;
+        check_range("calibrate.noise_px", self.noise_px, 0.1..=20.0)?;
+        check_range("calibrate.vvp_inlier_px", self.vvp_inlier_px, 0.2..=50.0)?;
+        check_range(
+            "calibrate.ransac_iterations",
+            self.ransac_iterations,
+            10..=10000,
+        )?;
+        check_range("calibrate.anchor_step_px", self.anchor_step_px, 0.0..=500.0)?;
+        check_range(
+            "calibrate.anchors_per_track",
+            self.anchors_per_track,
+            4..=256,
+        )?;
+        check_range("calibrate.tracks", self.tracks, 2..=1024)?;
+        check_range(
+            "calibrate.pair_separation",
+            self.pair_separation,
+            0.05..=20.0,
+        )?;
+        check_range("calibrate.refit_interval", self.refit_interval, 1..=100000)?;
+        check_range("calibrate.min_tilt_deg", self.min_tilt_deg, 0.0..=45.0)?;
+        check_range("calibrate.max_tilt_deg", self.max_tilt_deg, 45.0..=90.0)?;
+        check_range(
+            "calibrate.emit_focal_change",
+            self.emit_focal_change,
+            0.0..=1.0,
+        )?;
+        check_range("calibrate.emit_angle_deg", self.emit_angle_deg, 0.0..=45.0)?;
+        check_range(
+            "calibrate.state_interval_s",
+            self.state_interval_s,
+            0.0..=86400.0,
+        )?;
+        Ok(())
+    }
+
+    /// The scale mode these values select: a known camera height wins, then
+    /// a reference person, else the population prior.
+    pub fn scale_mode(&self) -> ScaleMode {
+        if self.camera_height_m > 0.0 {
+            ScaleMode::CameraHeight(self.camera_height_m)
+        } else if self.reference_height_m > 0.0 {
+            ScaleMode::ReferencePerson(self.reference_height_m)
+        } else {
+            ScaleMode::PopulationPrior(self.prior_height_m)
+        }
+    }
+}
+
+/// How the metric scale is set. Geometry alone fixes every height only up
+/// to one factor (heights relative to the camera height); one length fixes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ScaleMode {
+    /// (a) The people seen have this mean height (the paper uses 1.8 m; we
+    /// default to 1.70 m). Camera height = prior / mean over tracks of each
+    /// track's median relative height. Absolute heights inherit the prior's
+    /// error; relative heights do not.
+    PopulationPrior(f64),
+    /// (b) The camera is mounted this high: heights are absolute, with
+    /// no assumption about the people (the most accurate mode).
+    CameraHeight(f64),
+    /// (c) The first person tracked long enough (8 anchors) has this
+    /// height: walk through the scene alone after installation.
+    ReferencePerson(f64),
+}
+
+/// The current calibration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Vanishing geometry (pixels).
+    pub geom: ViewGeometry,
+    /// Camera height above the ground, metres.
+    pub camera_height: f64,
+    /// Head–foot lines supporting `v`.
+    pub inliers: u32,
+    /// Pair measurements supporting the horizon.
+    pub horizon_inliers: u32,
+    /// Standard deviation of the focal length as a fraction of it.
+    pub focal_rel_sigma: f64,
+    /// Confidence 0..1.
+    pub confidence: f64,
+    /// Why eq. 3 is unreliable for this view, if it is.
+    pub degeneracy: Option<Degeneracy>,
+    /// Bumped at every refit that changed the estimate (for re-measuring).
+    pub version: u32,
+}
+
+impl Estimate {
+    /// Height in metres of a head/foot observation with this calibration.
+    pub fn height(&self, o: &HeadFoot) -> Option<f64> {
+        self.geom.height_ratio(o).map(|r| r * self.camera_height)
+    }
+
+    /// The report record.
+    pub fn record(&self, frame: u64, is_final: bool) -> Calibration {
+        let h = self.geom.horizon();
+        Calibration {
+            frame,
+            f_px: self.geom.focal() as f32,
+            tilt_deg: self.geom.tilt().to_degrees() as f32,
+            roll_deg: self.geom.roll().to_degrees() as f32,
+            camera_height_m: self.camera_height as f32,
+            horizon: [h[0] as f32, h[1] as f32, h[2] as f32],
+            vertical_vp: [self.geom.v[0] as f32, self.geom.v[1] as f32],
+            inliers: self.inliers,
+            confidence: self.confidence as f32,
+            is_final,
+        }
+    }
+}
+
+/// Per-track slot of the anchor store.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Slot {
+    id: u32,
+    used: bool,
+    len: usize,
+    last_frame: u64,
+    /// Order of first appearance (for the reference-person mode).
+    seq: u64,
+}
+
+/// The incremental self-calibration stage. Everything it needs is allocated
+/// in [`Calibrator::new`].
+#[derive(Debug)]
+pub struct Calibrator {
+    cfg: CalibrateConfig,
+    norm: Normaliser,
+    slots: Vec<Slot>,
+    /// `slots.len() × anchors_per_track` anchors, slot-major.
+    anchors: Vec<HeadFoot>,
+    flat: Vec<HeadFoot>,
+    flat_slot: Vec<u16>,
+    inlier: Vec<bool>,
+    samples: Vec<OffsetSample>,
+    ratios: Vec<f64>,
+    rng: Rng,
+    seq: u64,
+    new_anchors: u32,
+    last_refit: u64,
+    estimate: Option<Estimate>,
+    emitted: Option<Estimate>,
+    stability: f64,
+    degeneracy_told: Option<Degeneracy>,
+    /// State file writer, if configured.
+    pub state: Option<state::StateFile>,
+    last_state_write: Option<u64>,
+    fps: f64,
+}
+
+/// Upper bound on horizon pair samples per track: all pairs of its anchors.
+fn pairs_per_track(k: usize) -> usize {
+    k * (k - 1) / 2
+}
+
+impl Calibrator {
+    /// Sizes the store for a `width`×`height` image.
+    pub fn new(cfg: &CalibrateConfig, width: usize, height: usize) -> Self {
+        let total = cfg.tracks * cfg.anchors_per_track;
+        Calibrator {
+            cfg: cfg.clone(),
+            norm: Normaliser::for_image(width, height),
+            slots: vec![Slot::default(); cfg.tracks],
+            anchors: vec![HeadFoot::default(); total],
+            flat: Vec::with_capacity(total),
+            flat_slot: Vec::with_capacity(total),
+            inlier: vec![false; total],
+            samples: Vec::with_capacity(cfg.tracks * pairs_per_track(cfg.anchors_per_track)),
+            ratios: Vec::with_capacity(cfg.anchors_per_track.max(cfg.tracks)),
+            rng: Rng::new(cfg.seed),
+            seq: 0,
+            new_anchors: 0,
+            last_refit: 0,
+            estimate: None,
+            emitted: None,
+            stability: 0.0,
+            degeneracy_told: None,
+            state: None,
+            last_state_write: None,
+            fps: 25.0,
+        }
+    }
+
+    /// Frames per second of the stream (for the state write interval).
+    pub fn set_fps(&mut self, fps: f64) {
+        if fps > 0.0 {
+            self.fps = fps;
+        }
+    }
+
+    /// The current estimate, if there is one.
+    pub fn estimate(&self) -> Option<&Estimate> {
+        self.estimate.as_ref()
+    }
+
+    /// Anchors stored now.
+    pub fn anchor_count(&self) -> usize {
+        self.slots.iter().filter(|s| s.used).map(|s| s.len).sum()
+    }
+
+    /// One observation of track `id` in frame `frame` (already checked by
+    /// the tracker: single person, not at the border, not cut).
+    pub fn observe(&mut self, frame: u64, id: u32, o: HeadFoot) {
+        if !(o.head[1] < o.foot[1]) || !o.extent().is_finite() {
+            return;
+        }
+        let k = self.cfg.anchors_per_track;
+        let slot = match self.slots.iter().position(|s| s.used && s.id == id) {
+            Some(s) => s,
+            None => {
+                // A free slot, else replace the track seen longest ago.
+                let s = self.slots.iter().position(|s| !s.used).unwrap_or_else(|| {
+                    let mut best = 0;
+                    for (i, s) in self.slots.iter().enumerate() {
+                        if s.last_frame < self.slots[best].last_frame {
+                            best = i;
+                        }
+                    }
+                    best
+                });
+                self.seq += 1;
+                self.slots[s] = Slot {
+                    id,
+                    used: true,
+                    len: 0,
+                    last_frame: frame,
+                    seq: self.seq,
+                };
+                s
+            }
+        };
+        let base = slot * k;
+        let len = self.slots[slot].len;
+        if len > 0 {
+            let last = self.anchors[base + len - 1];
+            let step =
+                ((o.foot[0] - last.foot[0]).powi(2) + (o.foot[1] - last.foot[1]).powi(2)).sqrt();
+            if step < self.cfg.anchor_step_px {
+                return;
+            }
+        }
+        self.slots[slot].last_frame = frame;
+        if len == k {
+            // Full: keep every other anchor so the track's path stays
+            // covered end to end with half the density.
+            for i in 0..k / 2 {
+                self.anchors[base + i] = self.anchors[base + 2 * i + 1];
+            }
+            self.slots[slot].len = k / 2;
+        }
+        let len = self.slots[slot].len;
+        self.anchors[base + len] = o;
+        self.slots[slot].len = len + 1;
+        self.new_anchors += 1;
+    }
+
+    /// Refits when due; returns a calibration record when the estimate
+    /// changed materially since the last one returned.
+    pub fn update(&mut self, frame: u64) -> Option<Calibration> {
+        if self.new_anchors == 0 || frame < self.last_refit + u64::from(self.cfg.refit_interval) {
+            return None;
+        }
+        self.last_refit = frame;
+        self.new_anchors = 0;
+        self.refit();
+        let est = self.estimate?;
+        if let Some(dg) = est.degeneracy {
+            if self.degeneracy_told != Some(dg) {
+                log::warn!("calibration: {}", dg.describe());
+                self.degeneracy_told = Some(dg);
+            }
+        }
+        let material = match &self.emitted {
+            None => true,
+            Some(e) => {
+                (est.geom.focal() / e.geom.focal() - 1.0).abs() > self.cfg.emit_focal_change
+                    || (est.geom.tilt() - e.geom.tilt()).abs().to_degrees()
+                        > self.cfg.emit_angle_deg
+                    || (est.geom.roll() - e.geom.roll()).abs().to_degrees()
+                        > self.cfg.emit_angle_deg
+                    || (est.camera_height / e.camera_height - 1.0).abs()
+                        > self.cfg.emit_focal_change
+                    || (est.confidence - e.confidence).abs() > 0.05
+            }
+        };
+        if !material {
+            return None;
+        }
+        self.emitted = Some(est);
+        let due = self.last_state_write.map_or(true, |f| {
+            (frame - f) as f64 >= self.cfg.state_interval_s * self.fps
+        });
+        if due && self.state.is_some() {
+            self.last_state_write = Some(frame);
+            self.save_state();
+        }
+        Some(est.record(frame, false))
+    }
+
+    /// The final calibration record (and a last state write).
+    pub fn finish(&mut self, frame: u64) -> Option<Calibration> {
+        if self.new_anchors > 0 {
+            self.new_anchors = 0;
+            self.refit();
+        }
+        if self.state.is_some() {
+            self.save_state();
+        }
+        self.estimate.map(|e| e.record(frame, true))
+    }
+
+    fn save_state(&mut self) {
+        let Some(mut st) = self.state.take() else {
+            return;
+        };
+        let k = self.cfg.anchors_per_track;
+        let view = state::StateView {
+            width: (self.norm.p[0] * 2.0 + 1.0).round() as u32,
+            height: (self.norm.p[1] * 2.0 + 1.0).round() as u32,
+            tracks: &self.slots,
+            anchors: &self.anchors,
+            per_track: k,
+        };
+        if let Err(e) = st.write(&view) {
+            log::warn!("calibration state: {e}");
+        }
+        self.state = Some(st);
+    }
+
+    /// Resumes from a loaded state (anchors of earlier runs; image size
+    /// must match). Returns the number of anchors restored.
+    pub fn resume(&mut self, saved: &state::Saved) -> usize {
+        let w = (self.norm.p[0] * 2.0 + 1.0).round() as u32;
+        let h = (self.norm.p[1] * 2.0 + 1.0).round() as u32;
+        if saved.width != w || saved.height != h {
+            log::warn!(
+                "calibration state is for {}x{} frames, not {w}x{h}: ignored",
+                saved.width,
+                saved.height
+            );
+            return 0;
+        }
+        let mut n = 0;
+        // Earlier runs' track ids could collide with this run's: give them
+        // ids from the top of the range.
+        for (i, t) in saved.tracks.iter().enumerate() {
+            let id = u32::MAX - i as u32;
+            for a in t {
+                let valid = a.head.iter().chain(a.foot.iter()).all(|x| x.is_finite());
+                if valid {
+                    // Saved anchors are already thinned, so the step filter keeps them.
+                    self.observe(0, id, *a);
+                    n += 1;
+                }
+            }
+        }
+        self.new_anchors = 0;
+        self.refit();
+        self.emitted = None;
+        n
+    }
+
+    /// The full refit (bounded work: ≤ tracks × anchors lines and all
+    /// in-track anchor pairs).
+    fn refit(&mut self) {
+        self.flat.clear();
+        self.flat_slot.clear();
+        for s in 0..self.slots.len() {
+            if !self.slots[s].used {
+                continue;
+            }
+            let k = self.cfg.anchors_per_track;
+            for i in 0..self.slots[s].len {
+                self.flat.push(self.anchors[s * k + i]);
+                self.flat_slot.push(s as u16);
+            }
+        }
+        let params = VvpParams {
+            inlier_px: self.cfg.vvp_inlier_px,
+            iterations: self.cfg.ransac_iterations,
+        };
+        let n = self.flat.len();
+        let Some(vfit) = geometry::fit_vvp(
+            &self.flat,
+            &self.norm,
+            &params,
+            &mut self.rng,
+            &mut self.inlier[..n],
+        ) else {
+            return;
+        };
+        // Axis from p toward v in normalised coordinates (v may be far).
+        let v = vfit.v;
+        let (ax, ay) = if v.z.abs() > 1e-12 {
+            (v.x / v.z, v.y / v.z)
+        } else {
+            (v.x, v.y)
+        };
+        let an = (ax * ax + ay * ay).sqrt();
+        if an < 1e-12 {
+            return;
+        }
+        let axis = [ax / an, ay / an];
+        // Horizon pair samples from inlier anchors of the same track.
+        self.samples.clear();
+        let mut start = 0;
+        while start < n {
+            let s = self.flat_slot[start];
+            let mut end = start;
+            while end < n && self.flat_slot[end] == s {
+                end += 1;
+            }
+            for i in start..end {
+                if !self.inlier[i] {
+                    continue;
+                }
+                for j in i + 1..end {
+                    if !self.inlier[j] {
+                        continue;
+                    }
+                    let (a, b) = (&self.flat[i], &self.flat[j]);
+                    let sep =
+                        ((a.foot[0] - b.foot[0]).powi(2) + (a.foot[1] - b.foot[1]).powi(2)).sqrt();
+                    if sep < self.cfg.pair_separation * 0.5 * (a.extent() + b.extent()) {
+                        continue;
+                    }
+                    if let Some(x) =
+                        geometry::offset_sample(a, b, &self.norm, axis, self.cfg.noise_px)
+                    {
+                        if self.samples.len() < self.samples.capacity() {
+                            self.samples.push(x);
+                        }
+                    }
+                }
+            }
+            start = end;
+        }
+        let Some((d, sd, hinl)) =
+            geometry::fit_offset(&self.samples, &mut self.rng, self.cfg.ransac_iterations)
+        else {
+            return;
+        };
+        let Some(geom0) = ViewGeometry::from_normalised(&v, d, &self.norm) else {
+            return;
+        };
+        let geom = self.refine_offset(geom0, sd * self.norm.s);
+        // Scale.
+        let camera_height = match self.scale(&geom) {
+            Some(h) if h.is_finite() && h > 0.0 => h,
+            _ => return,
+        };
+        let degeneracy = geom.degeneracy(
+            self.cfg.min_tilt_deg.to_radians(),
+            self.cfg.max_tilt_deg.to_radians(),
+        );
+        let focal_rel_sigma = 0.5 * sd / d;
+        let prev_f = self.estimate.map(|e| e.geom.focal());
+        let change = prev_f.map_or(1.0, |p| (geom.focal() / p - 1.0).abs());
+        // Stability: smoothed agreement of successive refits.
+        self.stability = 0.7 * self.stability + 0.3 * (-change / 0.02).exp();
+        let spread = self.spread();
+        let c_lines = 1.0 - (-(vfit.inliers as f64) / 60.0).exp();
+        let c_pairs = 1.0 - (-(hinl as f64) / 40.0).exp();
+        let c_prec = (-focal_rel_sigma / 0.02).exp();
+        let mut confidence = c_lines * c_pairs * c_prec * spread * self.stability;
+        if degeneracy.is_some() {
+            confidence *= 0.25;
+        }
+        let version = self.estimate.map_or(1, |e| e.version + 1);
+        self.estimate = Some(Estimate {
+            geom,
+            camera_height,
+            inliers: vfit.inliers as u32,
+            horizon_inliers: hinl as u32,
+            focal_rel_sigma,
+            confidence: confidence.clamp(0.0, 1.0),
+            degeneracy,
+            version,
+        });
+    }
+
+    /// Within-track consistency of geometry `g`: every person keeps one
+    /// height, so each track's mean relative height `r̄` predicts every
+    /// head from its foot ([`ViewGeometry::head_for_ratio`]); the cost is
+    /// the summed squared pixel difference between predicted and observed
+    /// head–foot extents over the VVP inliers of tracks with 3 or more of
+    /// them. (Measured in pixels, where the noise lives, so it has no
+    /// bias toward any `d`; a cost on the ratios normalised by their mean
+    /// favoured horizons that inflate the ratios.)
+    fn spread_cost(&self, g: &ViewGeometry) -> f64 {
+        let mut total = 0.0;
+        let n = self.flat.len();
+        let mut start = 0;
+        while start < n {
+            let s = self.flat_slot[start];
+            let mut end = start;
+            while end < n && self.flat_slot[end] == s {
+                end += 1;
+            }
+            let (mut k, mut sum) = (0usize, 0.0);
+            for i in start..end {
+                if self.inlier[i] {
+                    if let Some(r) = g.height_ratio(&self.flat[i]) {
+                        k += 1;
+                        sum += r;
+                    }
+                }
+            }
+            if k >= 3 {
+                let mean = sum / k as f64;
+                for i in start..end {
+                    let o = &self.flat[i];
+                    if !self.inlier[i] {
+                        continue;
+                    }
+                    if let Some(h) = g.head_for_ratio(o.foot, mean) {
+                        let pred = ((h[0] - o.foot[0]).powi(2) + (h[1] - o.foot[1]).powi(2)).sqrt();
+                        total += (pred - o.extent()).powi(2);
+                    }
+                }
+            }
+            start = end;
+        }
+        total
+    }
+
+    /// Least-squares refinement of the horizon offset `d` by golden-section
+    /// search within ±4σ (at least ±15 %) of the pair estimate, minimising
+    /// [`Calibrator::spread_cost`]. (`v` stays as fitted: refining it with
+    /// the same cost was tried and is ill-conditioned, trading `|v − p|`
+    /// against `d`.)
+    fn refine_offset(&self, g: ViewGeometry, sd_px: f64) -> ViewGeometry {
+        let span = (4.0 * sd_px).max(0.15 * g.d).min(0.5 * g.d);
+        let d = golden(g.d - span, g.d + span, |d| {
+            self.spread_cost(&ViewGeometry { d, ..g })
+        });
+        if d.is_finite() && d > 0.0 {
+            ViewGeometry { d, ..g }
+        } else {
+            g
+        }
+    }
+
+    /// Spatial spread of the anchors' feet: occupied cells of a 4×4 grid
+    /// over the image, 6 or more counting as full spread.
+    fn spread(&self) -> f64 {
+        let mut cells = 0u16;
+        let (w, h) = (self.norm.p[0] * 2.0 + 1.0, self.norm.p[1] * 2.0 + 1.0);
+        for a in &self.flat {
+            let cx = ((a.foot[0] / w * 4.0) as i64).clamp(0, 3);
+            let cy = ((a.foot[1] / h * 4.0) as i64).clamp(0, 3);
+            cells |= 1 << (cy * 4 + cx);
+        }
+        (f64::from(cells.count_ones()) / 6.0).min(1.0)
+    }
+
+    /// Camera height from the configured scale mode and the geometry.
+    fn scale(&mut self, geom: &ViewGeometry) -> Option<f64> {
+        match self.cfg.scale_mode() {
+            ScaleMode::CameraHeight(h) => Some(h),
+            ScaleMode::PopulationPrior(mean) => {
+                let (mut sum, mut n) = (0.0, 0usize);
+                for s in 0..self.slots.len() {
+                    if self.slots[s].used && self.slots[s].len >= 3 {
+                        if let Some(r) = self.median_ratio(s, geom) {
+                            sum += r;
+                            n += 1;
+                        }
+                    }
+                }
+                (n > 0 && sum > 0.0).then(|| mean / (sum / n as f64))
+            }
+            ScaleMode::ReferencePerson(h) => {
+                let mut best: Option<usize> = None;
+                for (i, s) in self.slots.iter().enumerate() {
+                    if s.used && s.len >= 8 && best.map_or(true, |b| s.seq < self.slots[b].seq) {
+                        best = Some(i);
+                    }
+                }
+                let r = self.median_ratio(best?, geom)?;
+                (r > 0.0).then(|| h / r)
+            }
+        }
+    }
+
+    fn median_ratio(&mut self, s: usize, geom: &ViewGeometry) -> Option<f64> {
+        self.ratios.clear();
+        let k = self.cfg.anchors_per_track;
+        for i in 0..self.slots[s].len {
+            if let Some(r) = geom.height_ratio(&self.anchors[s * k + i]) {
+                self.ratios.push(r);
+            }
+        }
+        median(&mut self.ratios)
+    }
+}
+
+/// Median of a scratch slice (reordered in place); `None` when empty.
+pub fn median(v: &mut [f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable_by(|a, b| a.total_cmp(b));
+    let m = v.len() / 2;
+    Some(if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    })
+}
+
+#[cfg(test)]
+mod tests;

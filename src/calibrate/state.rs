@@ -1,0 +1,157 @@
+//! The calibration state file: the anchor store of the calibrator as JSON,
+//! written atomically (temporary file in the same directory, `fsync`,
+//! rename, then `fsync` of the directory) so that a power cut leaves either
+//! the old or the new file, never a torn one. A state file that cannot be
+//! read or parsed is reported and ignored: calibration starts afresh.
+//!
+//! Writing serialises into a buffer allocated once, so the periodic writes
+//! the loop makes do not allocate (paths shorter than a few hundred bytes
+//! are converted on the stack by `std`).
+
+use super::geometry::HeadFoot;
+use super::Slot;
+use serde::ser::{SerializeSeq, SerializeStruct};
+use serde::{Deserialize, Serialize, Serializer};
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Format version written in the file.
+pub const STATE_VERSION: u32 = 1;
+
+/// A loaded state file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Saved {
+    /// Format version.
+    pub version: u32,
+    /// Frame width the anchors refer to.
+    pub width: u32,
+    /// Frame height.
+    pub height: u32,
+    /// Anchors per track, oldest first.
+    pub tracks: Vec<Vec<HeadFoot>>,
+}
+
+/// Borrowed view of the store, serialised without copying.
+pub(super) struct StateView<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub tracks: &'a [Slot],
+    pub anchors: &'a [HeadFoot],
+    pub per_track: usize,
+}
+
+struct Tracks<'a>(&'a StateView<'a>);
+
+impl Serialize for Tracks<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let v = self.0;
+        let mut seq = s.serialize_seq(None)?;
+        for (i, t) in v.tracks.iter().enumerate() {
+            if t.used && t.len > 0 {
+                let base = i * v.per_track;
+                seq.serialize_element(&v.anchors[base..base + t.len])?;
+            }
+        }
+        seq.end()
+    }
+}
+
+impl Serialize for StateView<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut st = s.serialize_struct("Saved", 4)?;
+        st.serialize_field("version", &STATE_VERSION)?;
+        st.serialize_field("width", &self.width)?;
+        st.serialize_field("height", &self.height)?;
+        st.serialize_field("tracks", &Tracks(self))?;
+        st.end()
+    }
+}
+
+/// Why a state file could not be used.
+#[derive(Debug)]
+pub enum StateError {
+    /// Reading or writing failed.
+    Io(std::io::Error),
+    /// The content is not a state file of this version.
+    Corrupt(String),
+}
+
+impl core::fmt::Display for StateError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StateError::Io(e) => write!(f, "{e}"),
+            StateError::Corrupt(m) => write!(f, "corrupt state file: {m}"),
+        }
+    }
+}
+
+/// A state file with its write buffer.
+#[derive(Debug)]
+pub struct StateFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    dir: PathBuf,
+    buf: Vec<u8>,
+}
+
+impl StateFile {
+    /// A state file at `path`; `capacity` bytes of serialisation buffer.
+    pub fn new(path: &Path, capacity: usize) -> Self {
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        StateFile {
+            path: path.to_path_buf(),
+            tmp: PathBuf::from(tmp),
+            dir,
+            buf: Vec::with_capacity(capacity),
+        }
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Reads the file: `Ok(None)` when it does not exist.
+    pub fn load(&self) -> Result<Option<Saved>, StateError> {
+        let text = match std::fs::read(&self.path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(StateError::Io(e)),
+        };
+        let saved: Saved =
+            serde_json::from_slice(&text).map_err(|e| StateError::Corrupt(e.to_string()))?;
+        if saved.version != STATE_VERSION {
+            return Err(StateError::Corrupt(format!(
+                "version {} (expected {STATE_VERSION})",
+                saved.version
+            )));
+        }
+        Ok(Some(saved))
+    }
+
+    /// Writes atomically: temp file, fsync, rename, fsync of the directory.
+    pub(super) fn write(&mut self, view: &StateView<'_>) -> Result<(), StateError> {
+        self.buf.clear();
+        serde_json::to_writer(&mut self.buf, view)
+            .map_err(|e| StateError::Corrupt(e.to_string()))?;
+        self.buf.push(b'\n');
+        let mut f = File::create(&self.tmp).map_err(StateError::Io)?;
+        f.write_all(&self.buf).map_err(StateError::Io)?;
+        f.sync_all().map_err(StateError::Io)?;
+        drop(f);
+        std::fs::rename(&self.tmp, &self.path).map_err(StateError::Io)?;
+        // The rename itself is durable only once the directory is synced;
+        // some filesystems refuse to open directories, which is harmless.
+        if let Ok(d) = File::open(&self.dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+}

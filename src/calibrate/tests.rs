@@ -1,0 +1,262 @@
+//! Calibration from synthetic walks in front of random known cameras.
+
+use super::geometry::*;
+use super::synth::{random_camera, walk, SynthScene};
+use super::*;
+use crate::camera::Camera;
+
+fn calibrate(
+    cam: &Camera,
+    scene: &SynthScene,
+    cfg: &CalibrateConfig,
+    seed: u64,
+) -> (Calibrator, Vec<synth::SynthObs>) {
+    let mut rng = Rng::new(seed);
+    let obs = walk(cam, scene, &mut rng);
+    let mut c = Calibrator::new(cfg, scene.width, scene.height);
+    for o in &obs {
+        c.observe(o.frame, o.id, o.hf);
+        c.update(o.frame);
+    }
+    c.finish(obs.last().map_or(0, |o| o.frame));
+    (c, obs)
+}
+
+struct Errors {
+    focal_rel: f64,
+    tilt_deg: f64,
+    roll_deg: f64,
+    height_rel: f64,
+}
+
+fn errors(e: &Estimate, cam: &Camera) -> Errors {
+    Errors {
+        focal_rel: (e.geom.focal() / cam.f - 1.0).abs(),
+        tilt_deg: (e.geom.tilt() - cam.tilt).abs().to_degrees(),
+        roll_deg: (e.geom.roll() - cam.roll).abs().to_degrees(),
+        height_rel: (e.camera_height / cam.height - 1.0).abs(),
+    }
+}
+
+#[test]
+fn vanishing_point_of_noise_free_lines_is_exact() {
+    let mut rng = Rng::new(3);
+    for _ in 0..10 {
+        let cam = random_camera(&mut rng, 640, 480);
+        let scene = SynthScene {
+            noise_px: 0.0,
+            people: 5,
+            ..Default::default()
+        };
+        let obs: Vec<HeadFoot> = walk(&cam, &scene, &mut rng).iter().map(|o| o.hf).collect();
+        let norm = Normaliser::for_image(640, 480);
+        let mut flags = vec![false; obs.len()];
+        let params = VvpParams {
+            inlier_px: 1.0,
+            iterations: 100,
+        };
+        let fit = fit_vvp(&obs, &norm, &params, &mut rng, &mut flags).unwrap();
+        let truth = cam.vertical_vanishing_point();
+        let got = [
+            norm.p[0] + norm.s * fit.v.x / fit.v.z,
+            norm.p[1] + norm.s * fit.v.y / fit.v.z,
+        ];
+        let r = ((truth[0] - norm.p[0]).powi(2) + (truth[1] - norm.p[1]).powi(2)).sqrt();
+        let err = ((got[0] - truth[0]).powi(2) + (got[1] - truth[1]).powi(2)).sqrt();
+        assert!(err < 1e-6 * r, "{got:?} vs {truth:?}");
+        assert_eq!(fit.inliers, obs.len());
+    }
+}
+
+#[test]
+fn random_cameras_are_recovered_with_known_camera_height() {
+    let mut rng = Rng::new(11);
+    let mut worst = [0.0f64; 3];
+    for k in 0..12 {
+        let cam = random_camera(&mut rng, 640, 480);
+        let cfg = CalibrateConfig {
+            camera_height_m: cam.height,
+            ..Default::default()
+        };
+        let (c, obs) = calibrate(&cam, &SynthScene::default(), &cfg, 100 + k);
+        let e = c.estimate().expect("an estimate");
+        let err = errors(e, &cam);
+        worst[0] = worst[0].max(err.focal_rel);
+        worst[1] = worst[1].max(err.tilt_deg);
+        worst[2] = worst[2].max(err.roll_deg);
+        assert!(
+            err.focal_rel < 0.03 && err.tilt_deg < 1.0 && err.roll_deg < 1.0,
+            "camera {k} {cam:?}: f {:.1} tilt {:.2} roll {:.2} ({} obs, conf {:.2}, {:?})",
+            e.geom.focal(),
+            e.geom.tilt().to_degrees(),
+            e.geom.roll().to_degrees(),
+            obs.len(),
+            e.confidence,
+            e.degeneracy
+        );
+        assert!(e.confidence > 0.5, "confidence {}", e.confidence);
+        // Per-person heights through the estimate, median per person.
+        let mut errs = Vec::new();
+        for id in 1..=20u32 {
+            let mut hs: Vec<f64> = obs
+                .iter()
+                .filter(|o| o.id == id)
+                .filter_map(|o| e.height(&o.hf))
+                .collect();
+            let truth = obs.iter().find(|o| o.id == id).map(|o| o.height);
+            if let (Some(m), Some(t)) = (median(&mut hs), truth) {
+                errs.push((m - t).abs());
+            }
+        }
+        let m = median(&mut errs).unwrap();
+        eprintln!(
+            "camera {k}: f {:.1}/{:.1} tilt {:.2}/{:.2} roll {:.2}/{:.2} h-err {m:.4} conf {:.2} obs {} hc {:.2} vvp-inl {} hor-inl {}",
+            e.geom.focal(),
+            cam.f,
+            e.geom.tilt().to_degrees(),
+            cam.tilt.to_degrees(),
+            e.geom.roll().to_degrees(),
+            cam.roll.to_degrees(),
+            e.confidence,
+            obs.len(),
+            cam.height,
+            e.inliers,
+            e.horizon_inliers
+        );
+        assert!(m < 0.02, "camera {k}: median height error {m}");
+    }
+    eprintln!(
+        "worst focal {:.4} tilt {:.3} roll {:.3}",
+        worst[0], worst[1], worst[2]
+    );
+}
+
+#[test]
+fn matched_population_prior_gives_camera_height() {
+    let mut rng = Rng::new(21);
+    for k in 0..6 {
+        let cam = random_camera(&mut rng, 640, 480);
+        let scene = SynthScene::default();
+        let obs = walk(&cam, &scene, &mut Rng::new(200 + k));
+        // The prior matched to the people actually seen.
+        let mut seen = std::collections::BTreeMap::new();
+        for o in &obs {
+            seen.insert(o.id, o.height);
+        }
+        let mean = seen.values().sum::<f64>() / seen.len() as f64;
+        let cfg = CalibrateConfig {
+            prior_height_m: mean,
+            ..Default::default()
+        };
+        let (c, _) = calibrate(&cam, &scene, &cfg, 200 + k);
+        let e = c.estimate().unwrap();
+        let err = errors(e, &cam);
+        assert!(
+            err.height_rel < 0.03,
+            "camera {k}: {} vs {}",
+            e.camera_height,
+            cam.height
+        );
+    }
+}
+
+#[test]
+fn reference_person_sets_the_scale() {
+    let mut rng = Rng::new(5);
+    let cam = random_camera(&mut rng, 640, 480);
+    let scene = SynthScene::default();
+    let obs = walk(&cam, &scene, &mut Rng::new(77));
+    // The first person with 8 anchors is the reference; with the default
+    // step, person 1 qualifies first in this scene.
+    let first = obs[0].id;
+    let truth = obs[0].height;
+    assert_eq!(first, 1);
+    let cfg = CalibrateConfig {
+        reference_height_m: truth,
+        ..Default::default()
+    };
+    let (c, _) = calibrate(&cam, &scene, &cfg, 77);
+    let e = c.estimate().unwrap();
+    assert!(
+        errors(e, &cam).height_rel < 0.03,
+        "{} vs {}",
+        e.camera_height,
+        cam.height
+    );
+}
+
+#[test]
+fn loitering_person_is_bounded_and_does_not_bias() {
+    let cam = Camera::centred(700.0, 25.0, 2.0, 4.0, 640, 480);
+    let cfg = CalibrateConfig::default();
+    let mut c = Calibrator::new(&cfg, 640, 480);
+    let mut rng = Rng::new(9);
+    // 20000 frames of one person shuffling around one spot.
+    for f in 0..20_000u64 {
+        let x = 0.3 * rng.normal();
+        let y = 8.0 + 0.3 * rng.normal();
+        let o = HeadFoot {
+            head: cam.project([x, y, 1.75]).unwrap(),
+            foot: cam.project([x, y, 0.0]).unwrap(),
+        };
+        c.observe(f, 1, o);
+        c.update(f);
+    }
+    assert!(c.anchor_count() <= cfg.anchors_per_track);
+    // One spot cannot give a horizon: no confident estimate.
+    assert!(c.estimate().map_or(true, |e| e.confidence < 0.3));
+}
+
+#[test]
+fn near_vertical_view_is_flagged() {
+    let cam = Camera::centred(500.0, 82.0, 0.0, 6.0, 640, 480);
+    let cfg = CalibrateConfig {
+        camera_height_m: 6.0,
+        ..Default::default()
+    };
+    let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 4);
+    if let Some(e) = c.estimate() {
+        assert_eq!(e.degeneracy, Some(Degeneracy::NearVertical), "{e:?}");
+        assert!(e.confidence < 0.3);
+    }
+}
+
+#[test]
+fn state_file_round_trip_and_corrupt_file() {
+    let dir = std::env::temp_dir().join(format!("stature-state-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("cal.json");
+    let _ = std::fs::remove_file(&path);
+    let mut rng = Rng::new(2);
+    let cam = random_camera(&mut rng, 640, 480);
+    let cfg = CalibrateConfig {
+        camera_height_m: cam.height,
+        ..Default::default()
+    };
+    let obs = walk(&cam, &SynthScene::default(), &mut Rng::new(8));
+    let mut c = Calibrator::new(&cfg, 640, 480);
+    c.state = Some(state::StateFile::new(&path, 1 << 20));
+    assert!(c.state.as_ref().unwrap().load().unwrap().is_none());
+    for o in &obs {
+        c.observe(o.frame, o.id, o.hf);
+        c.update(o.frame);
+    }
+    let fin = c.finish(obs.last().unwrap().frame).unwrap();
+    assert!(!path.with_extension("json.tmp").exists());
+    let saved = state::StateFile::new(&path, 0).load().unwrap().unwrap();
+    let mut d = Calibrator::new(&cfg, 640, 480);
+    let n = d.resume(&saved);
+    assert_eq!(n, c.anchor_count());
+    let e = d.estimate().unwrap();
+    assert!((e.geom.focal() / f64::from(fin.f_px) - 1.0).abs() < 0.01);
+    // A different frame size is refused.
+    let mut other = Calibrator::new(&cfg, 800, 600);
+    assert_eq!(other.resume(&saved), 0);
+    // Corrupt content is an error, not a panic.
+    std::fs::write(&path, b"{\"version\":1,\"width\":640,").unwrap();
+    assert!(matches!(
+        state::StateFile::new(&path, 0).load(),
+        Err(state::StateError::Corrupt(_))
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,284 @@
+//! The feature layout: window size, cell sizes, block selection, and the
+//! order in which features appear in the vector the SVM sees.
+//!
+//! # Feature vector (format version 1)
+//!
+//! A region's box is resampled to a `win_w`×`win_h` window (see
+//! [`super::window`]). The vector is, in this order:
+//!
+//! 1. **HOG**: the window is cut into square cells of `hog_cell` pixels
+//!    (`win_w / hog_cell` columns, `win_h / hog_cell` rows). Blocks are 2×2
+//!    cells stepping one cell, numbered row-major. For every *selected*
+//!    block, in block order: its cells top-left, top-right, bottom-left,
+//!    bottom-right, each [`HOG_BINS`] unsigned orientation bins (bin `k`
+//!    centred on `20°·k + 10°`, angle measured from +x toward +y, i.e. image
+//!    down), block-normalised (see [`super::hog`]).
+//! 2. **LBP**: the window is cut into square cells of `lbp_cell` pixels,
+//!    row-major. For every *selected* cell: [`LBP_BINS`] bins, the 58
+//!    uniform 8-neighbour patterns in ascending code order, then one bin for
+//!    all non-uniform patterns (see [`super::lbp`]).
+//!
+//! Every feature is a `u8`, 255 meaning 1.0 of its normalised scale.
+//! [`Layout::hash`] fingerprints all of this (plus [`FEATURE_VERSION`]) so a
+//! weight blob trained for another layout is refused.
+
+use core::fmt;
+
+/// Orientation bins per HOG cell (unsigned gradients, 0°..180°).
+pub const HOG_BINS: usize = 9;
+/// Values per 2×2-cell HOG block.
+pub const BLOCK_DIM: usize = 4 * HOG_BINS;
+/// Bins per LBP cell: 58 uniform patterns plus one catch-all bin.
+pub const LBP_BINS: usize = 59;
+/// Bumped whenever feature arithmetic changes in a way the layout
+/// parameters do not show (it feeds [`Layout::hash`]).
+pub const FEATURE_VERSION: u32 = 1;
+/// Largest window side accepted, in pixels (bounds every scratch buffer and
+/// the Q formats in [`super::hog`]).
+pub const MAX_WINDOW_SIDE: u16 = 256;
+
+/// A layout parameter outside what this build supports.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LayoutError(pub String);
+
+impl fmt::Display for LayoutError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// The window geometry and feature layout a model was trained for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// Window width, pixels.
+    pub win_w: u16,
+    /// Window height, pixels.
+    pub win_h: u16,
+    /// Margin added above and below the region box, in 1/256 of the box
+    /// height (e.g. 43 ≈ 1/6: the person fills ~3/4 of the window height).
+    pub margin_q8: u16,
+    /// HOG cell side, pixels (divides both window sides).
+    pub hog_cell: u8,
+    /// LBP cell side, pixels (divides both window sides).
+    pub lbp_cell: u8,
+    /// LBP comparison offset: a neighbour sets its bit when it is at least
+    /// this many grey levels brighter than the centre... or equal when 0
+    /// (a small offset keeps codec noise on flat areas out of the codes).
+    pub lbp_threshold: u8,
+    /// One flag per HOG block (row-major): computed and fed to the SVM.
+    pub hog_blocks: Vec<bool>,
+    /// One flag per LBP cell (row-major).
+    pub lbp_cells: Vec<bool>,
+}
+
+impl Layout {
+    /// A layout with every block and cell selected, checked.
+    pub fn full(
+        win_w: u16,
+        win_h: u16,
+        margin_q8: u16,
+        hog_cell: u8,
+        lbp_cell: u8,
+        lbp_threshold: u8,
+    ) -> Result<Self, LayoutError> {
+        let mut l = Layout {
+            win_w,
+            win_h,
+            margin_q8,
+            hog_cell,
+            lbp_cell,
+            lbp_threshold,
+            hog_blocks: Vec::new(),
+            lbp_cells: Vec::new(),
+        };
+        l.check_geometry()?;
+        l.hog_blocks = vec![true; l.hog_block_count()];
+        l.lbp_cells = vec![true; l.lbp_cell_count()];
+        Ok(l)
+    }
+
+    /// The layout the shipped weights use: 32×64 window, 4-px HOG cells,
+    /// 8-px LBP cells (chosen from the measurements in `bench/RESULTS.md`).
+    pub fn default_layout() -> Self {
+        // The parameters are constants inside the supported ranges.
+        Layout::full(32, 64, 43, 4, 8, 2).unwrap_or_else(|_| unreachable!())
+    }
+
+    fn check_geometry(&self) -> Result<(), LayoutError> {
+        let side_ok = |s: u16| (8..=MAX_WINDOW_SIDE).contains(&s);
+        if !side_ok(self.win_w) || !side_ok(self.win_h) {
+            return Err(LayoutError(format!(
+                "window {}x{} outside 8..={MAX_WINDOW_SIDE} pixels a side",
+                self.win_w, self.win_h
+            )));
+        }
+        for (name, c) in [("HOG", self.hog_cell), ("LBP", self.lbp_cell)] {
+            if !(2..=32).contains(&c)
+                || self.win_w % u16::from(c) != 0
+                || self.win_h % u16::from(c) != 0
+            {
+                return Err(LayoutError(format!(
+                    "{name} cell {c} px does not tile the {}x{} window (2..=32 px, dividing both sides)",
+                    self.win_w, self.win_h
+                )));
+            }
+        }
+        if self.win_w / u16::from(self.hog_cell) < 2 || self.win_h / u16::from(self.hog_cell) < 2 {
+            return Err(LayoutError("fewer than 2x2 HOG cells".into()));
+        }
+        if self.margin_q8 > 256 {
+            return Err(LayoutError(format!(
+                "margin {}/256 of the box height exceeds 1",
+                self.margin_q8
+            )));
+        }
+        Ok(())
+    }
+
+    /// Checks the parameters and that the selections have the right length.
+    pub fn validate(&self) -> Result<(), LayoutError> {
+        self.check_geometry()?;
+        if self.hog_blocks.len() != self.hog_block_count()
+            || self.lbp_cells.len() != self.lbp_cell_count()
+        {
+            return Err(LayoutError(
+                "block selection does not match the grid".into(),
+            ));
+        }
+        if self.dim() == 0 {
+            return Err(LayoutError("no block or cell selected".into()));
+        }
+        Ok(())
+    }
+
+    /// HOG cell columns and rows.
+    pub fn hog_cells(&self) -> (usize, usize) {
+        let c = usize::from(self.hog_cell);
+        (usize::from(self.win_w) / c, usize::from(self.win_h) / c)
+    }
+    /// HOG block columns and rows (2×2 cells, stride one cell).
+    pub fn hog_block_grid(&self) -> (usize, usize) {
+        let (cx, cy) = self.hog_cells();
+        (cx - 1, cy - 1)
+    }
+    /// Number of HOG blocks in the grid (selected or not).
+    pub fn hog_block_count(&self) -> usize {
+        let (bx, by) = self.hog_block_grid();
+        bx * by
+    }
+    /// LBP cell columns and rows.
+    pub fn lbp_grid(&self) -> (usize, usize) {
+        let c = usize::from(self.lbp_cell);
+        (usize::from(self.win_w) / c, usize::from(self.win_h) / c)
+    }
+    /// Number of LBP cells in the grid (selected or not).
+    pub fn lbp_cell_count(&self) -> usize {
+        let (cx, cy) = self.lbp_grid();
+        cx * cy
+    }
+    /// Selected HOG blocks.
+    pub fn selected_blocks(&self) -> usize {
+        self.hog_blocks.iter().filter(|&&b| b).count()
+    }
+    /// Selected LBP cells.
+    pub fn selected_lbp_cells(&self) -> usize {
+        self.lbp_cells.iter().filter(|&&b| b).count()
+    }
+    /// Length of the HOG part of the vector.
+    pub fn hog_dim(&self) -> usize {
+        self.selected_blocks() * BLOCK_DIM
+    }
+    /// Feature vector length.
+    pub fn dim(&self) -> usize {
+        self.hog_dim() + self.selected_lbp_cells() * LBP_BINS
+    }
+
+    /// Canonical bytes that define the layout (what [`Layout::hash`] hashes
+    /// and what the weight blob stores after its header).
+    pub fn canonical_bytes(&self) -> Vec<u8> {
+        let mut b = Vec::with_capacity(32 + (self.hog_blocks.len() + self.lbp_cells.len()) / 8);
+        b.extend_from_slice(&FEATURE_VERSION.to_le_bytes());
+        b.extend_from_slice(&self.win_w.to_le_bytes());
+        b.extend_from_slice(&self.win_h.to_le_bytes());
+        b.extend_from_slice(&self.margin_q8.to_le_bytes());
+        b.extend_from_slice(&[
+            self.hog_cell,
+            HOG_BINS as u8,
+            self.lbp_cell,
+            LBP_BINS as u8,
+            self.lbp_threshold,
+        ]);
+        b.extend_from_slice(&pack_bits(&self.hog_blocks));
+        b.extend_from_slice(&pack_bits(&self.lbp_cells));
+        b
+    }
+
+    /// FNV-1a (64-bit) of [`Layout::canonical_bytes`].
+    pub fn hash(&self) -> u64 {
+        fnv1a64(&self.canonical_bytes())
+    }
+}
+
+/// Packs flags into bytes, bit `i % 8` of byte `i / 8`.
+pub fn pack_bits(flags: &[bool]) -> Vec<u8> {
+    let mut out = vec![0u8; flags.len().div_ceil(8)];
+    for (i, &f) in flags.iter().enumerate() {
+        if f {
+            out[i / 8] |= 1 << (i % 8);
+        }
+    }
+    out
+}
+
+/// Unpacks `n` flags packed by [`pack_bits`].
+pub fn unpack_bits(bytes: &[u8], n: usize) -> Vec<bool> {
+    (0..n)
+        .map(|i| bytes.get(i / 8).is_some_and(|b| b & (1 << (i % 8)) != 0))
+        .collect()
+}
+
+/// FNV-1a, 64-bit: a stable fingerprint (not a defence against tampering;
+/// the blob's CRC-32 catches corruption).
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_layout_dimensions() {
+        let l = Layout::default_layout();
+        assert_eq!(l.hog_cells(), (8, 16));
+        assert_eq!(l.hog_block_count(), 7 * 15);
+        assert_eq!(l.lbp_cell_count(), 4 * 8);
+        assert_eq!(l.dim(), 105 * 36 + 32 * 59);
+        l.validate().unwrap();
+    }
+
+    #[test]
+    fn bad_geometry_is_refused() {
+        assert!(Layout::full(30, 64, 43, 4, 8, 2).is_err());
+        assert!(Layout::full(32, 64, 43, 4, 7, 2).is_err());
+        assert!(Layout::full(32, 64, 300, 4, 8, 2).is_err());
+        assert!(Layout::full(4, 64, 43, 4, 8, 2).is_err());
+    }
+
+    #[test]
+    fn hash_sees_selection_changes() {
+        let a = Layout::default_layout();
+        let mut b = a.clone();
+        b.hog_blocks[3] = false;
+        assert_ne!(a.hash(), b.hash());
+        assert_eq!(
+            unpack_bits(&pack_bits(&b.hog_blocks), b.hog_blocks.len()),
+            b.hog_blocks
+        );
+    }
+}

@@ -1,0 +1,464 @@
+//! Labelled boxes for training and evaluation (host side, never in the loop).
+//!
+//! * MIT CBCL crops: each 64×128 crop becomes one positive whose box is
+//!   placed so that the window covers the whole crop ([`mit_person_box`]),
+//!   plus its mirror image, plus one fragment negative (top or bottom part
+//!   of the person).
+//! * PETS 2009 S2.L1 frames, from the ground-truth boxes
+//!   ([`pets_frame_samples`]): clean single people (inside the image, at
+//!   most [`CLEAN_OCCLUSION`] of the box covered by other people) with box
+//!   jitter as positives; background boxes away from people, union boxes of
+//!   two nearby people, and fragments of clean people as negatives. People
+//!   partly hidden by others are left out of both classes (ambiguous).
+//!
+//! Everything is drawn from a seeded [`Rng`], so a run is reproducible.
+
+use crate::dataset::GtBox;
+use crate::detect::BBox;
+use crate::frame::Plane;
+use std::path::Path;
+
+/// SplitMix64: small, fast and good enough for sampling boxes.
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from a seed.
+    pub fn new(seed: u64) -> Self {
+        Rng(seed ^ 0x9e37_79b9_7f4a_7c15)
+    }
+    /// Next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    /// Uniform in `[0, 1)`.
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in `[lo, hi)`.
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// Uniform integer in `0..n` (`n > 0`).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n.max(1) as u64) as usize
+    }
+    /// Shuffles a slice (Fisher–Yates).
+    pub fn shuffle<T>(&mut self, v: &mut [T]) {
+        for i in (1..v.len()).rev() {
+            v.swap(i, self.below(i + 1));
+        }
+    }
+}
+
+/// What a labelled box shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Kind {
+    /// Exactly one upright person (the positive class).
+    Person,
+    /// No object.
+    Background,
+    /// Two or more people merged into one box.
+    Group,
+    /// Part of one person.
+    Fragment,
+    /// A car (simulated scenes).
+    Car,
+    /// A dog (simulated scenes).
+    Dog,
+}
+
+impl Kind {
+    /// True for the "single human" class.
+    pub fn positive(self) -> bool {
+        self == Kind::Person
+    }
+    /// Lower-case name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Person => "person",
+            Kind::Background => "background",
+            Kind::Group => "group",
+            Kind::Fragment => "fragment",
+            Kind::Car => "car",
+            Kind::Dog => "dog",
+        }
+    }
+    /// Every kind, in report order.
+    pub const ALL: [Kind; 6] = [
+        Kind::Person,
+        Kind::Background,
+        Kind::Group,
+        Kind::Fragment,
+        Kind::Car,
+        Kind::Dog,
+    ];
+}
+
+/// Where a sample came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Origin {
+    /// MIT CBCL pedestrian crops.
+    Mit,
+    /// PETS 2009 S2.L1 video.
+    Pets,
+    /// The built-in simulated scene.
+    Sim,
+}
+
+impl Origin {
+    /// Name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Origin::Mit => "MIT CBCL",
+            Origin::Pets => "PETS S2.L1",
+            Origin::Sim => "sim",
+        }
+    }
+}
+
+/// Share of a person box that other people may cover for it to count as a
+/// clean single person (more than that: ambiguous, left out).
+pub const CLEAN_OCCLUSION: f64 = 0.15;
+
+/// A float box `[x0, y0, x1, y1]`, inclusive pixel edges as in `gt.csv`.
+pub type FBox = [f64; 4];
+
+fn area(b: &FBox) -> f64 {
+    (b[2] - b[0] + 1.0).max(0.0) * (b[3] - b[1] + 1.0).max(0.0)
+}
+
+fn inter(a: &FBox, b: &FBox) -> f64 {
+    let w = a[2].min(b[2]) - a[0].max(b[0]) + 1.0;
+    let h = a[3].min(b[3]) - a[1].max(b[1]) + 1.0;
+    if w <= 0.0 || h <= 0.0 {
+        0.0
+    } else {
+        w * h
+    }
+}
+
+/// Share of `a` covered by `b`.
+pub fn coverage(a: &FBox, b: &FBox) -> f64 {
+    inter(a, b) / area(a).max(1.0)
+}
+
+/// Rounds a float box to a [`BBox`] inside a `w`×`h` image; `None` when
+/// less than 8 px remain in either direction.
+pub fn to_bbox(b: &FBox, w: usize, h: usize) -> Option<BBox> {
+    let x0 = b[0].round().max(0.0);
+    let y0 = b[1].round().max(0.0);
+    let x1 = b[2].round().min(w as f64 - 1.0);
+    let y1 = b[3].round().min(h as f64 - 1.0);
+    (x1 - x0 >= 7.0 && y1 - y0 >= 7.0).then_some(BBox {
+        x0: x0 as u16,
+        y0: y0 as u16,
+        x1: x1 as u16,
+        y1: y1 as u16,
+    })
+}
+
+fn gt_fbox(g: &GtBox) -> FBox {
+    [
+        f64::from(g.x0),
+        f64::from(g.y0),
+        f64::from(g.x1),
+        f64::from(g.y1),
+    ]
+}
+
+/// A box of one frame with its label.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Labelled {
+    /// What it shows.
+    pub kind: Kind,
+    /// The box.
+    pub bbox: BBox,
+}
+
+/// How many negatives of each kind to draw per frame.
+#[derive(Clone, Copy, Debug)]
+pub struct PerFrame {
+    /// Jittered copies of each clean person.
+    pub persons: usize,
+    /// Background boxes.
+    pub background: usize,
+    /// Fragments (of randomly chosen clean people).
+    pub fragments: usize,
+    /// Take every qualifying pair of people as a group box (else none).
+    pub groups: bool,
+}
+
+/// Jitter of a detected box around the true one: centre ±6 % of width and
+/// ±4 % of height, height ×0.93..1.07, width ×0.85..1.2 (a detector's
+/// silhouette box is looser at the sides than at head and feet).
+pub fn jitter(b: &FBox, rng: &mut Rng) -> FBox {
+    let (w, h) = (b[2] - b[0] + 1.0, b[3] - b[1] + 1.0);
+    let cx = (b[0] + b[2]) / 2.0 + rng.range(-0.06, 0.06) * w;
+    let cy = (b[1] + b[3]) / 2.0 + rng.range(-0.04, 0.04) * h;
+    let nh = h * rng.range(0.93, 1.07);
+    let nw = w * rng.range(0.85, 1.2);
+    [
+        cx - (nw - 1.0) / 2.0,
+        cy - (nh - 1.0) / 2.0,
+        cx + (nw - 1.0) / 2.0,
+        cy + (nh - 1.0) / 2.0,
+    ]
+}
+
+/// A random fragment of a person box: a top, bottom or middle band (how a
+/// silhouette splits when clothing matches the background). Left or right
+/// parts are not used: the window's width follows the box height, so such a
+/// window still shows most of the person, only off-centre.
+pub fn fragment(b: &FBox, rng: &mut Rng) -> FBox {
+    let h = b[3] - b[1] + 1.0;
+    match rng.below(3) {
+        0 => [b[0], b[1], b[2], b[1] + h * rng.range(0.25, 0.6)],
+        1 => [b[0], b[3] - h * rng.range(0.3, 0.6), b[2], b[3]],
+        _ => {
+            let t = b[1] + h * rng.range(0.15, 0.3);
+            [b[0], t, b[2], t + h * rng.range(0.3, 0.45)]
+        }
+    }
+}
+
+/// Labelled boxes of one PETS frame (see the module doc), `w`×`h` image.
+pub fn pets_frame_samples(
+    gt: &[GtBox],
+    w: usize,
+    h: usize,
+    per: PerFrame,
+    rng: &mut Rng,
+    out: &mut Vec<Labelled>,
+) {
+    let boxes: Vec<FBox> = gt.iter().map(gt_fbox).collect();
+    let inside =
+        |b: &FBox| b[0] >= 2.0 && b[1] >= 2.0 && b[2] <= w as f64 - 3.0 && b[3] <= h as f64 - 3.0;
+    let occlusion = |i: usize| -> f64 {
+        boxes
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, o)| coverage(&boxes[i], o))
+            .sum::<f64>()
+            .min(1.0)
+    };
+    let clean: Vec<usize> = (0..boxes.len())
+        .filter(|&i| inside(&boxes[i]) && occlusion(i) <= CLEAN_OCCLUSION)
+        .collect();
+    let mut push = |kind: Kind, b: &FBox| {
+        if let Some(bbox) = to_bbox(b, w, h) {
+            out.push(Labelled { kind, bbox });
+        }
+    };
+    for &i in &clean {
+        for _ in 0..per.persons {
+            push(Kind::Person, &jitter(&boxes[i], rng));
+        }
+    }
+    if !clean.is_empty() {
+        for _ in 0..per.fragments {
+            let i = clean[rng.below(clean.len())];
+            push(Kind::Fragment, &fragment(&boxes[i], rng));
+        }
+    }
+    if per.groups {
+        for i in 0..boxes.len() {
+            for j in i + 1..boxes.len() {
+                let (a, b) = (&boxes[i], &boxes[j]);
+                if !inside(a) || !inside(b) {
+                    continue;
+                }
+                let (wa, wb) = (a[2] - a[0] + 1.0, b[2] - b[0] + 1.0);
+                let gap = a[0].max(b[0]) - a[2].min(b[2]) - 1.0;
+                let v_overlap = a[3].min(b[3]) - a[1].max(b[1]) + 1.0;
+                let hmin = (a[3] - a[1]).min(b[3] - b[1]) + 1.0;
+                // Near enough to merge into one foreground region, and not
+                // one hidden behind the other (that looks like one person).
+                let near = gap < 0.5 * wa.min(wb) && v_overlap > 0.3 * hmin;
+                let distinct = coverage(a, b) < 0.6 && coverage(b, a) < 0.6;
+                if near && distinct {
+                    let u = [
+                        a[0].min(b[0]),
+                        a[1].min(b[1]),
+                        a[2].max(b[2]),
+                        a[3].max(b[3]),
+                    ];
+                    // A little jitter, as for people.
+                    let uj = jitter(&u, rng);
+                    push(Kind::Group, &uj);
+                }
+            }
+        }
+    }
+    if !boxes.is_empty() {
+        let mut tries = 0;
+        let mut made = 0;
+        while made < per.background && tries < per.background * 20 {
+            tries += 1;
+            let r = &boxes[rng.below(boxes.len())];
+            let bh = (r[3] - r[1] + 1.0) * rng.range(0.5, 1.5);
+            let bw = bh * rng.range(0.25, 1.2);
+            if bw >= w as f64 - 4.0 || bh >= h as f64 - 4.0 {
+                continue;
+            }
+            let x0 = rng.range(0.0, w as f64 - bw);
+            let y0 = rng.range(0.0, h as f64 - bh);
+            let c = [x0, y0, x0 + bw - 1.0, y0 + bh - 1.0];
+            // Away from people: little of the box is person, and no person
+            // is substantially inside it.
+            let clear = boxes
+                .iter()
+                .all(|p| coverage(&c, p) < 0.1 && coverage(p, &c) < 0.2);
+            if clear {
+                push(Kind::Background, &c);
+                made += 1;
+            }
+        }
+    }
+}
+
+/// The box in a 64×128 MIT crop whose window (for `margin_q8`, aspect 1:2)
+/// is the whole crop: the person is taken as centred and `128 / (1 + 2m)`
+/// rows tall, `0.36` of that wide (the median PETS aspect).
+pub fn mit_person_box(margin_q8: u16) -> FBox {
+    let h = 128.0 / (1.0 + 2.0 * f64::from(margin_q8) / 256.0);
+    let w = (h * 0.36).round();
+    [
+        31.5 - (w - 1.0) / 2.0,
+        63.5 - (h - 1.0) / 2.0,
+        31.5 + (w - 1.0) / 2.0,
+        63.5 + (h - 1.0) / 2.0,
+    ]
+}
+
+/// Reads one MIT crop as BT.601 limited-range luma (like the decoded video),
+/// optionally mirrored left-right.
+pub fn read_png_luma(path: &Path, mirror: bool) -> Result<(Vec<u8>, usize, usize), String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut dec = png::Decoder::new(file);
+    dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut reader = dec
+        .read_info()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let (w, h) = (info.width as usize, info.height as usize);
+    let ch = match info.color_type {
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        png::ColorType::Grayscale => 1,
+        png::ColorType::GrayscaleAlpha => 2,
+        png::ColorType::Indexed => return Err(format!("{}: indexed PNG", path.display())),
+    };
+    let mut y = vec![0u8; w * h];
+    for row in 0..h {
+        for col in 0..w {
+            let p = &buf[(row * w + col) * ch..];
+            let v = if ch >= 3 {
+                // BT.601 limited range, Q8 coefficients.
+                (16.0
+                    + (65.738 * f64::from(p[0])
+                        + 129.057 * f64::from(p[1])
+                        + 25.064 * f64::from(p[2]))
+                        / 256.0)
+                    .round()
+            } else {
+                16.0 + f64::from(p[0]) * 219.0 / 255.0
+            };
+            let dst = if mirror { w - 1 - col } else { col };
+            y[row * w + dst] = v.clamp(0.0, 255.0) as u8;
+        }
+    }
+    Ok((y, w, h))
+}
+
+/// The MIT crop files, sorted, with the known pixel duplicates left out.
+pub fn mit_files(data_dir: &Path) -> Result<Vec<std::path::PathBuf>, String> {
+    let dir = data_dir.join("mit-cbcl-pedestrians");
+    let mut v: Vec<_> = std::fs::read_dir(&dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "png"))
+        .collect();
+    v.sort();
+    // per00002 = per00001, per00022 = per00021, per00026/27 = per00025.
+    v.retain(|p| {
+        let n = p.file_name().and_then(|s| s.to_str()).unwrap_or("");
+        !matches!(
+            n,
+            "per00002.png" | "per00022.png" | "per00026.png" | "per00027.png"
+        )
+    });
+    Ok(v)
+}
+
+/// Borrow a tightly packed luma buffer as a plane.
+pub fn plane(data: &[u8], w: usize, h: usize) -> Option<Plane<'_>> {
+    Plane::new(data, w, h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gt(id: u32, x0: i32, y0: i32, x1: i32, y1: i32) -> GtBox {
+        GtBox {
+            frame: 0,
+            id,
+            x0,
+            y0,
+            x1,
+            y1,
+        }
+    }
+
+    #[test]
+    fn frame_samples_respect_the_rules() {
+        let boxes = [
+            gt(1, 100, 100, 130, 180),
+            gt(2, 135, 105, 165, 185), // near 1: a group
+            gt(3, 400, 300, 430, 380),
+            gt(4, 405, 305, 435, 385), // hides most of 3: both ambiguous, no group
+        ];
+        let mut rng = Rng::new(7);
+        let mut out = Vec::new();
+        let per = PerFrame {
+            persons: 1,
+            background: 20,
+            fragments: 4,
+            groups: true,
+        };
+        pets_frame_samples(&boxes, 768, 576, per, &mut rng, &mut out);
+        let count = |k| out.iter().filter(|s| s.kind == k).count();
+        assert_eq!(count(Kind::Person), 2, "{out:?}");
+        assert_eq!(count(Kind::Group), 1);
+        assert_eq!(count(Kind::Background), 20);
+        assert_eq!(count(Kind::Fragment), 4);
+        for s in out.iter().filter(|s| s.kind == Kind::Background) {
+            let b = [
+                f64::from(s.bbox.x0),
+                f64::from(s.bbox.y0),
+                f64::from(s.bbox.x1),
+                f64::from(s.bbox.y1),
+            ];
+            for g in &boxes {
+                assert!(coverage(&b, &gt_fbox(g)) < 0.12);
+            }
+        }
+    }
+
+    #[test]
+    fn rng_is_reproducible() {
+        let mut a = Rng::new(3);
+        let mut b = Rng::new(3);
+        assert!((0..100).all(|_| a.next_u64() == b.next_u64()));
+        assert_ne!(Rng::new(4).next_u64(), Rng::new(3).next_u64());
+    }
+}

@@ -1,0 +1,226 @@
+//! Region box → fixed-size window on the Y plane (bilinear, fixed point).
+//!
+//! The window keeps the layout's aspect ratio. Its height is the box height
+//! plus a margin above and below ([`Layout::margin_q8`]); if the box (plus
+//! the same relative margin left and right) is wider than that, the window
+//! grows to fit the width instead, so a wide region (a group, a car) is
+//! shrunk whole rather than cropped. The box centre is the window centre.
+//!
+//! The window is sampled with a one-pixel border, `(win_w + 2)` ×
+//! `(win_h + 2)`, so that gradients and LBP codes exist at every window
+//! pixel. Samples outside the plane repeat its edge pixels.
+
+use super::layout::Layout;
+use crate::detect::BBox;
+use crate::frame::Plane;
+
+/// A window rectangle in source pixel coordinates, Q16.16 (pixel centres at
+/// integers, so the left edge of pixel 0 is −0.5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WindowRect {
+    /// Left edge, Q16.16 pixels.
+    pub left: i64,
+    /// Top edge, Q16.16 pixels.
+    pub top: i64,
+    /// Width, Q16.16 pixels.
+    pub width: i64,
+    /// Height, Q16.16 pixels.
+    pub height: i64,
+}
+
+/// The window rectangle around `bbox` for `layout` (see the module doc).
+pub fn window_rect(bbox: &BBox, layout: &Layout) -> WindowRect {
+    let bw = i64::from(bbox.width());
+    let bh = i64::from(bbox.height());
+    let m = i64::from(layout.margin_q8);
+    let (ww, wh) = (i64::from(layout.win_w), i64::from(layout.win_h));
+    // Q8 sizes: box side × (1 + 2·margin). bh ≤ 65536, so ≤ 2^16·3·2^8 = 2^25.6.
+    let mut height_q8 = bh * 256 + 2 * bh * m;
+    let mut width_q8 = height_q8 * ww / wh;
+    let need_w_q8 = bw * 256 + 2 * bw * m;
+    if need_w_q8 > width_q8 {
+        width_q8 = need_w_q8;
+        height_q8 = width_q8 * wh / ww;
+    }
+    // Centre in Q16: (x0 + x1) / 2.
+    let cx = (i64::from(bbox.x0) + i64::from(bbox.x1)) << 15;
+    let cy = (i64::from(bbox.y0) + i64::from(bbox.y1)) << 15;
+    WindowRect {
+        left: cx - (width_q8 << 7),
+        top: cy - (height_q8 << 7),
+        width: width_q8 << 8,
+        height: height_q8 << 8,
+    }
+}
+
+/// One axis of the sampling grid: for each window coordinate (border
+/// included), the two source indices and the Q8 weight of the second.
+#[derive(Clone, Debug, Default)]
+struct Axis {
+    a: Vec<u32>,
+    b: Vec<u32>,
+    frac: Vec<u32>,
+}
+
+impl Axis {
+    fn with_len(n: usize) -> Self {
+        Axis {
+            a: vec![0; n],
+            b: vec![0; n],
+            frac: vec![0; n],
+        }
+    }
+
+    /// Fills the grid for an edge at `start` (Q16) with `n - 2` window
+    /// pixels spanning `span` (Q16) over a source axis of `len` pixels.
+    fn fill(&mut self, start: i64, span: i64, len: usize) {
+        let n = self.a.len() as i64;
+        let inner = n - 2;
+        let last = len.saturating_sub(1) as i64;
+        for i in 0..n {
+            // Centre of window pixel i − 1 (the border is pixel −1); with
+            // pixel centres at integers its floor is the left sample.
+            let s = start + ((2 * (i - 1) + 1) * span).div_euclid(2 * inner);
+            let ip = s >> 16;
+            let (a, b, f) = if ip < 0 {
+                (0, 0, 0)
+            } else if ip >= last {
+                (last, last, 0)
+            } else {
+                (ip, ip + 1, (s >> 8) & 255)
+            };
+            let k = i as usize;
+            self.a[k] = a as u32;
+            self.b[k] = b as u32;
+            self.frac[k] = f as u32;
+        }
+    }
+}
+
+/// Resamples boxes into a bordered window; owns its scratch.
+#[derive(Clone, Debug)]
+pub struct Sampler {
+    xs: Axis,
+    ys: Axis,
+    w: usize,
+    h: usize,
+}
+
+impl Sampler {
+    /// Scratch for windows of `layout`'s size.
+    pub fn new(layout: &Layout) -> Self {
+        let w = usize::from(layout.win_w);
+        let h = usize::from(layout.win_h);
+        Sampler {
+            xs: Axis::with_len(w + 2),
+            ys: Axis::with_len(h + 2),
+            w,
+            h,
+        }
+    }
+
+    /// Stride of the bordered window (`win_w + 2`).
+    pub fn stride(&self) -> usize {
+        self.w + 2
+    }
+
+    /// Bytes of the bordered window.
+    pub fn len(&self) -> usize {
+        (self.w + 2) * (self.h + 2)
+    }
+
+    /// Always false: a window has at least 10×10 bytes.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Samples `rect` of `luma` into `out` (`len()` bytes, row stride
+    /// `stride()`). Bilinear in Q8 weights; the sum of four products is at
+    /// most 255·2^16 and rounds to nearest. Returns `false` (and leaves
+    /// `out` alone) for an empty plane or a short `out`.
+    pub fn sample(&mut self, luma: Plane<'_>, rect: &WindowRect, out: &mut [u8]) -> bool {
+        if luma.width == 0 || luma.height == 0 || out.len() < self.len() {
+            return false;
+        }
+        self.xs.fill(rect.left, rect.width, luma.width);
+        self.ys.fill(rect.top, rect.height, luma.height);
+        let stride = self.stride();
+        for (j, row_out) in out.chunks_exact_mut(stride).take(self.h + 2).enumerate() {
+            let ra = luma.row(self.ys.a[j] as usize);
+            let rb = luma.row(self.ys.b[j] as usize);
+            let fy = self.ys.frac[j];
+            for (i, o) in row_out.iter_mut().enumerate() {
+                let (xa, xb, fx) = (
+                    self.xs.a[i] as usize,
+                    self.xs.b[i] as usize,
+                    self.xs.frac[i],
+                );
+                let top = u32::from(ra[xa]) * (256 - fx) + u32::from(ra[xb]) * fx;
+                let bot = u32::from(rb[xa]) * (256 - fx) + u32::from(rb[xb]) * fx;
+                *o = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+            }
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tall_box_gets_vertical_margin_and_aspect() {
+        let l = Layout::default_layout();
+        let b = BBox {
+            x0: 100,
+            y0: 50,
+            x1: 129,
+            y1: 145,
+        };
+        let r = window_rect(&b, &l);
+        let h = r.height as f64 / 65536.0;
+        let w = r.width as f64 / 65536.0;
+        assert!((h - 96.0 * (1.0 + 2.0 * 43.0 / 256.0)).abs() < 0.01, "{h}");
+        assert!((w * 2.0 - h).abs() < 0.01);
+        // Centred on the box.
+        let cx = (r.left as f64 + r.width as f64 / 2.0) / 65536.0;
+        assert!((cx - 114.5).abs() < 0.01, "{cx}");
+    }
+
+    #[test]
+    fn wide_box_widens_the_window() {
+        let l = Layout::default_layout();
+        let b = BBox {
+            x0: 0,
+            y0: 0,
+            x1: 199,
+            y1: 49,
+        };
+        let r = window_rect(&b, &l);
+        assert!(r.width >= 200 << 16);
+        assert_eq!(r.height, r.width * 2);
+    }
+
+    #[test]
+    fn identity_scale_copies_pixels() {
+        // A 34x66 box region sampled at scale 1 must reproduce the pixels.
+        let l = Layout::full(32, 64, 0, 4, 8, 0).unwrap();
+        let (w, h) = (80usize, 100usize);
+        let data: Vec<u8> = (0..w * h).map(|i| (i * 7 % 251) as u8).collect();
+        let plane = Plane::new(&data, w, h).unwrap();
+        let b = BBox {
+            x0: 10,
+            y0: 20,
+            x1: 41,
+            y1: 83,
+        };
+        let mut s = Sampler::new(&l);
+        let mut out = vec![0; s.len()];
+        assert!(s.sample(plane, &window_rect(&b, &l), &mut out));
+        for j in 0..66 {
+            for i in 0..34 {
+                assert_eq!(out[j * 34 + i], data[(19 + j) * w + 9 + i], "({i},{j})");
+            }
+        }
+    }
+}

@@ -1,0 +1,136 @@
+//! Detection on the simulated scenes (exact truth boxes): fixed point vs
+//! float, isolated people found, and shadows not growing the boxes.
+
+mod detect_support;
+
+use detect_support::{agreement, FloatGmm, Score};
+use stature::detect::morphology::BitMask;
+use stature::detect::{BBox, DetectConfig, Detector, RegionSet};
+use stature::frame::Frame;
+use stature::source::sim::people::Kind;
+use stature::source::sim::SimSource;
+use stature::source::{FrameSource, Next};
+
+const FRAMES: u64 = 300;
+const WARM_UP: u64 = 50;
+
+/// Truth boxes of people and other objects seen enough to be detectable.
+fn truth_boxes(src: &SimSource, out: &mut Vec<BBox>) {
+    out.clear();
+    out.extend(
+        src.truth()
+            .iter()
+            .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
+            .map(|o| BBox {
+                x0: o.bbox[0],
+                y0: o.bbox[1],
+                x1: o.bbox[2],
+                y1: o.bbox[3],
+            }),
+    );
+}
+
+/// Runs the detector (and optionally the float reference) over a scene;
+/// returns the score and the mean pixel agreement with the float model.
+fn run(uri: &str, with_float: bool) -> (Score, f64) {
+    let mut src = SimSource::open_uri(uri).expect("sim scene");
+    let size = src.info().size;
+    let cfg = DetectConfig::default();
+    let float_cfg = DetectConfig {
+        gain_compensation: false,
+        ..cfg.clone()
+    };
+    let mut det = Detector::new(&cfg, size);
+    let mut det_nogain = Detector::new(&float_cfg, size);
+    let mut float = with_float.then(|| {
+        (
+            FloatGmm::new(&float_cfg, size.width, size.height),
+            BitMask::new(size.width, size.height),
+        )
+    });
+    let mut out = RegionSet::with_capacity(cfg.region_capacity(), cfg.run_capacity(size));
+    let mut frame = Frame::new(size);
+    let mut score = Score::default();
+    let mut truth = Vec::new();
+    let (mut agree, mut total) = (0u64, 0u64);
+    for i in 0..FRAMES {
+        assert_eq!(src.next_frame(&mut frame).expect("frame"), Next::Frame);
+        det.process(&frame, &mut out);
+        if let Some((f, m)) = float.as_mut() {
+            det_nogain.segment(&frame);
+            f.apply(&frame, m);
+            agree += agreement(det_nogain.raw_mask(), m);
+            total += size.pixels() as u64;
+        }
+        if i >= WARM_UP {
+            truth_boxes(&src, &mut truth);
+            // Only walking, ≥ 90 % visible people are scored as "isolated
+            // people" (someone standing since frame 0 is background to any
+            // background model); other objects still count for isolation
+            // and false regions.
+            let people: Vec<bool> = src
+                .truth()
+                .iter()
+                .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
+                .map(|o| o.kind == Kind::Person && o.walking && o.visible_fraction >= 0.9)
+                .collect();
+            score.add_filtered(&truth, &people, out.regions());
+        }
+    }
+    (score, agree as f64 / total.max(1) as f64)
+}
+
+fn report(name: &str, s: &Score, agree: f64) {
+    println!(
+        "{name}: agreement {:.3} %, isolated people {} matched {} ({:.1} %), mean IoU {:.3}, false regions/frame {:.2}",
+        100.0 * agree,
+        s.isolated,
+        s.matched,
+        100.0 * s.recall(),
+        s.mean_iou(),
+        s.false_per_frame()
+    );
+}
+
+#[test]
+fn sim_low_scene() {
+    let (s, agree) = run("sim:low?seed=1", true);
+    report("sim:low", &s, agree);
+    assert!(agree >= 0.99, "agreement {agree}");
+    assert!(s.isolated > 100, "{s:?}");
+    // Measured 42.7 % matched, 0.58 false/frame (far below the 90 % target:
+    // see bench/RESULTS.md); floors catch regressions.
+    assert!(s.recall() >= 0.35, "{s:?}");
+    assert!(s.false_per_frame() <= 1.0, "{s:?}");
+}
+
+#[test]
+fn sim_plaza_scene_with_shadows() {
+    let (s, agree) = run("sim:plaza?seed=1&shadows=1", true);
+    report("sim:plaza shadows", &s, agree);
+    assert!(agree >= 0.99, "agreement {agree}");
+    assert!(s.isolated > 100, "{s:?}");
+    // Measured 25.5 % matched, 0.11 false/frame.
+    assert!(s.recall() >= 0.2, "{s:?}");
+    assert!(s.false_per_frame() <= 0.5, "{s:?}");
+}
+
+/// The same clip with and without moving shadows: the boxes do not grow by
+/// the shadow (the matched fraction and mean IoU hold).
+#[test]
+fn shadows_do_not_grow_boxes() {
+    let (with, _) = run("sim:plaza?seed=1&shadows=1", false);
+    let (without, _) = run("sim:plaza?seed=1&shadows=0", false);
+    report("sim:plaza shadows=1", &with, 1.0);
+    report("sim:plaza shadows=0", &without, 1.0);
+    // Measured: mean IoU 0.409 with shadows vs 0.425 without; matched
+    // 25.5 % vs 30.2 % (shadow suppression also erases some grey clothing).
+    assert!(
+        with.mean_iou() >= without.mean_iou() - 0.05,
+        "{with:?} vs {without:?}"
+    );
+    assert!(
+        with.recall() >= without.recall() - 0.08,
+        "{with:?} vs {without:?}"
+    );
+}

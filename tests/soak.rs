@@ -1,0 +1,95 @@
+//! A long run of the whole pipeline on the simulated scene: no allocation
+//! after warm-up, flat memory, no dropped records, bounded tables.
+//! CI runs `SOAK_FRAMES` (default 20,000) frames; `bench/soak.rs` runs the
+//! 100,000-frame version and writes its numbers to bench/RESULTS.md.
+
+use stature::alloc_count::{allocations, thread_allocations, CountingAlloc};
+use stature::config::Config;
+use stature::report::record::Record;
+use stature::report::Reporter;
+use stature::run::Pipeline;
+use stature::source::{self, Next};
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
+
+/// Resident set size of this process in KiB (`VmRSS` in /proc/self/status).
+fn rss_kib() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
+#[test]
+fn long_run_is_allocation_free_flat_and_loses_nothing() {
+    let frames: u64 = std::env::var("SOAK_FRAMES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(20_000);
+    let uri = format!("sim:plaza?seed=11&frames={frames}");
+    let mut src = source::open(&uri).expect("the simulated scene");
+    let cfg = Config::default();
+    let (mut reporter, rx, counters) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
+    // Count records on a consumer thread that never allocates per record.
+    let consumer = std::thread::spawn(move || {
+        let (mut heights, mut finals, mut total) = (0u64, 0u64, 0u64);
+        for r in rx.iter() {
+            total += 1;
+            if let Record::Height(h) = &r {
+                heights += 1;
+                finals += u64::from(h.is_final);
+            }
+        }
+        (total, heights, finals)
+    });
+    let mut p = Pipeline::new(&cfg, src.info());
+    let warm_up = 500.min(frames / 4);
+    let (mut alloc_base, mut process_base, mut rss_start) = (0, 0, 0);
+    let mut rss_peak_after_warm_up = 0;
+    for i in 0..frames {
+        if i == warm_up {
+            rss_start = rss_kib();
+            alloc_base = thread_allocations();
+            process_base = allocations();
+        }
+        match src.next_frame(&mut p.frame).expect("sim frames") {
+            Next::Frame => p.process(&mut reporter),
+            Next::Waiting => continue,
+            Next::End => break,
+        }
+        if i > warm_up && i % 1000 == 0 {
+            // Reading /proc allocates: keep it out of the loop's count.
+            let before = thread_allocations();
+            rss_peak_after_warm_up = rss_peak_after_warm_up.max(rss_kib());
+            alloc_base += thread_allocations() - before;
+        }
+    }
+    // The loop's own thread must not allocate at all; the process as a whole
+    // (test harness, consumer thread) is reported for information.
+    let steady_allocations = thread_allocations() - alloc_base;
+    let process_allocations = allocations() - process_base;
+    let rss_end = rss_kib();
+    p.finish(&mut reporter);
+    drop(reporter);
+    let (total, heights, finals) = consumer.join().unwrap();
+    eprintln!(
+        "soak: {frames} frames, allocations after warm-up: loop thread {steady_allocations}, process {process_allocations}; RSS start {rss_start} KiB end {rss_end} KiB peak {rss_peak_after_warm_up} KiB, records {total} (heights {heights}, final {finals}), dropped {}",
+        counters.dropped()
+    );
+    assert_eq!(p.frames, frames);
+    assert_eq!(steady_allocations, 0, "allocations in the steady state");
+    assert_eq!(
+        counters.dropped(),
+        0,
+        "records dropped with a consumer keeping up"
+    );
+    // Flat memory: allow page-cache noise of a few hundred KiB, no growth with time.
+    assert!(
+        rss_peak_after_warm_up.max(rss_end) <= rss_start + 512,
+        "RSS grew from {rss_start} KiB to {} KiB",
+        rss_peak_after_warm_up.max(rss_end)
+    );
+}
