@@ -24,7 +24,7 @@ use crate::report::record::Record;
 use crate::report::Counters;
 use rumqttc::{
     Client, ConnectReturnCode, Connection, ConnectionError, Event, LastWill, MqttOptions, Outgoing,
-    Packet, QoS, TlsConfiguration, Transport,
+    Packet, QoS, StateError, TlsConfiguration, Transport,
 };
 use std::io;
 use std::sync::atomic::Ordering;
@@ -419,7 +419,7 @@ impl Connector {
                     } else if msg != link.last_error {
                         let hint = hint(&e);
                         log::error!(
-                            "mqtt: cannot connect to {}: {msg}{hint}; retrying every {:.1} s at most, records are held meanwhile",
+                            "mqtt: cannot connect to {}: {msg}{hint}; retrying (backoff up to {:.1} s), records are held meanwhile",
                             self.settings.broker(),
                             max
                         );
@@ -482,7 +482,13 @@ fn describe(e: &ConnectionError) -> String {
                 ConnectReturnCode::Success => "success (?)",
             }
         ),
-        ConnectionError::Io(e) => format!("{e}"),
+        ConnectionError::MqttState(StateError::ConnectionAborted) => {
+            "the broker closed the connection".into()
+        }
+        ConnectionError::MqttState(StateError::AwaitPingResp) => {
+            "the broker stopped answering pings".into()
+        }
+        ConnectionError::MqttState(StateError::Io(e)) | ConnectionError::Io(e) => format!("{e}"),
         ConnectionError::NetworkTimeout => "no answer within the connection timeout".into(),
         other => other.to_string(),
     }
