@@ -24,8 +24,10 @@
 //!   a background object that moves away also takes that long to heal.
 //! * Shadows: a foreground pixel 0.7–0.95 times as bright as a background
 //!   mode counts as shadow (luma only; OpenCV's 0.5 erased grey clothing on
-//!   PETS). `bench/RESULTS.md` ("Detection") has the measurements and the
-//!   open question of a chroma term.
+//!   PETS). A pixel whose chroma differs from the [`chroma`] background by
+//!   more than `chroma_threshold` is foreground anyway (keeps people whose
+//!   clothes match the ground in luma whole, and coloured "shadows").
+//!   `bench/RESULTS.md` ("Detection") has the measurements.
 
 pub mod background;
 pub mod chroma;
