@@ -47,7 +47,7 @@ pub struct MeasureConfig {
 impl Default for MeasureConfig {
     fn default() -> Self {
         MeasureConfig {
-            min_confidence: 0.5,
+            min_confidence: 0.3,
             ransac_samples: 5,
             ransac_iterations: 50,
             inlier_m: 0.05,

@@ -111,8 +111,9 @@ fn heights_wait_for_confidence_and_follow_calibration_updates() {
         .collect();
     let mut m = Measurer::new(&MeasureConfig::default(), 128);
     assert!(m.track_height(None, obs.iter()).is_none());
+    let below = MeasureConfig::default().min_confidence * 0.9;
     assert!(m
-        .track_height(Some(&estimate(&cam, 0.3)), obs.iter())
+        .track_height(Some(&estimate(&cam, below)), obs.iter())
         .is_none());
     let c = m
         .track_height(Some(&estimate(&cam, 0.9)), obs.iter())
