@@ -1,8 +1,8 @@
 //! Classifier speed: µs per classified region, and a per-stage split.
 //!
 //! ```text
-//! cargo build --release --example classify_bench
-//! target/release/examples/classify_bench [REGIONS] [WEIGHTS]
+//! cargo bench --bench classify -- [REGIONS] [WEIGHTS|-] [total]
+//! bench/callgrind.sh classify REGIONS - total     (and again with 0)
 //! ```
 //!
 //! Regions are the PETS 2009 ground-truth boxes of frames 0..=49 (real
@@ -18,10 +18,14 @@ use std::hint::black_box;
 use std::time::Instant;
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    // `cargo bench` adds `--bench`; skip options.
+    let mut args = std::env::args().skip(1).filter(|a| !a.starts_with("--"));
     let n: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(20_000);
+    let weights = args.next().filter(|w| w != "-").unwrap_or_default();
+    // "total" skips the per-stage split (for callgrind totals).
+    let stages = args.next().as_deref() != Some("total");
     let cfg = ClassifyConfig {
-        weights: args.next().unwrap_or_default(),
+        weights,
         min_height: 8,
         ..Default::default()
     };
@@ -57,6 +61,9 @@ fn main() {
         cls.model().layout.win_h
     );
 
+    if !stages {
+        return;
+    }
     // Per-stage split with the same layout.
     let layout = cls.model().layout.clone();
     let mut sampler = window::Sampler::new(&layout);

@@ -89,6 +89,8 @@ pub struct Config {
     pub calibrate: crate::calibrate::CalibrateConfig,
     /// Height measurement.
     pub measure: crate::measure::MeasureConfig,
+    /// The board this profile is for, and its resource caps.
+    pub board: BoardConfig,
 }
 
 impl Default for Config {
@@ -102,6 +104,7 @@ impl Default for Config {
             track: Default::default(),
             calibrate: Default::default(),
             measure: Default::default(),
+            board: BoardConfig::default(),
         }
     }
 }
@@ -183,6 +186,42 @@ impl Default for RunConfig {
     }
 }
 
+/// `[board]`: what a board profile (`board/*.toml`) says about its target.
+/// The caps are enforced by the service manager (`board/install.sh` turns
+/// them into systemd `MemoryMax=`/`CPUQuota=`), not by the loop, whose
+/// buffers are sized by the frame size and the other sections.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BoardConfig {
+    /// Profile name, logged at start-up; empty on a workstation.
+    pub name: String,
+    /// Memory cap for the service, MiB (0 = none).
+    pub memory_max_mib: u32,
+    /// CPU cap for the service, percent of one core (0 = none).
+    pub cpu_quota_percent: u32,
+}
+
+impl BoardConfig {
+    /// Checks every value against its accepted range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !self
+            .name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(ConfigError::new(
+                "board.name",
+                format_args!("{:?}", self.name),
+                "letters, digits, `-` and `_` only",
+            ));
+        }
+        if self.memory_max_mib != 0 {
+            check_range("board.memory_max_mib", self.memory_max_mib, 16..=65536)?;
+        }
+        check_range("board.cpu_quota_percent", self.cpu_quota_percent, 0..=6400)
+    }
+}
+
 impl Config {
     /// Parses TOML text; unknown keys and bad types are errors.
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
@@ -234,6 +273,7 @@ impl Config {
         self.track.validate()?;
         self.calibrate.validate()?;
         self.measure.validate()?;
+        self.board.validate()?;
         Ok(())
     }
 }

@@ -164,6 +164,9 @@ struct TrainArgs {
     /// Only evaluate this weight blob on the held-out data (no training).
     #[arg(long)]
     evaluate: Option<PathBuf>,
+    /// Leave the simulated scenes out of training.
+    #[arg(long)]
+    no_sim: bool,
 }
 
 #[derive(Args)]
@@ -291,6 +294,9 @@ fn run_cmd(a: RunArgs) -> i32 {
 }
 
 fn run_pipeline(cfg: &Config) -> i32 {
+    if !cfg.board.name.is_empty() {
+        log::info!("board profile {}", cfg.board.name);
+    }
     match source::open(&cfg.source.uri) {
         Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new())),
         Err(e) => {
@@ -348,7 +354,10 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
         allocations: stature::alloc_count::allocations,
     };
     let mut summary = run::run(cfg, src, &mut reporter, &opts);
-    *outcome = (summary.calibration.take(), core::mem::take(&mut summary.heights));
+    *outcome = (
+        summary.calibration.take(),
+        core::mem::take(&mut summary.heights),
+    );
     reporter.finish(Duration::from_secs(5));
     if io.join().is_err() {
         log::error!("the report thread failed");
@@ -425,9 +434,10 @@ fn demo(a: DemoArgs) -> i32 {
         &cast,
         &demo::Estimates {
             calibration: outcome.0.as_ref(),
-            calibration_missing: "too few single-person observations for a calibration",
+            calibration_missing:
+                "too few single-person observations (a stub classifier finds none)",
             heights: &heights,
-            heights_missing: "no track reached the calibration confidence and sample count",
+            heights_missing: "no person track was measured",
         },
     );
     eprint!("{table}");
@@ -587,7 +597,11 @@ fn train_cmd(a: TrainArgs) -> i32 {
                 return exit::BAD_INPUT;
             }
         };
-        return match train::evaluate_pets(&data_dir, &model, a.seed) {
+        let ev = train::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
+            ev.rows.extend(train::evaluate_sim(&model, a.seed)?.rows);
+            Ok(ev)
+        });
+        return match ev {
             Ok(ev) => {
                 print!("{}\n{}", ev.table(), ev.det_table());
                 exit::OK
@@ -630,6 +644,7 @@ fn train_cmd(a: TrainArgs) -> i32 {
         select: a.select.clamp(0.01, 1.0),
         pets_stride: a.pets_stride.max(1),
         eval: a.eval,
+        sim: !a.no_sim,
     };
     let (model, report) = match train::train(&opts) {
         Ok(r) => r,

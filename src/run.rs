@@ -4,14 +4,14 @@
 use crate::calibrate::state::StateFile;
 use crate::calibrate::Calibrator;
 use crate::classify::{Classifier, Verdict};
-use crate::measure::Measurer;
-use crate::track::Tracker;
 use crate::config::Config;
 use crate::detect::{Detector, RegionSet};
 use crate::frame::Frame;
+use crate::measure::Measurer;
 use crate::report::record::{self, Bye, Calibration, Height, Hello, Record, Status};
 use crate::report::Reporter;
 use crate::source::{FrameSource, Next, SourceError, SourceInfo, SourceState};
+use crate::track::Tracker;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -60,7 +60,11 @@ impl Pipeline {
             tracker: Tracker::new(&cfg.track, max_regions),
             calib: Self::calibrator(cfg, info),
             measurer: Measurer::new(&cfg.measure, crate::track::RING),
-            fps: if info.fps_f64() > 0.0 { info.fps_f64() } else { 25.0 },
+            fps: if info.fps_f64() > 0.0 {
+                info.fps_f64()
+            } else {
+                25.0
+            },
             calibration: None,
             final_heights: Vec::with_capacity(FINAL_HEIGHTS_KEPT),
             frames: 0,
@@ -78,7 +82,10 @@ impl Pipeline {
             match file.load() {
                 Ok(Some(saved)) => {
                     let n = c.resume(&saved);
-                    log::info!("calibration state {}: resumed {n} observations", cfg.run.state);
+                    log::info!(
+                        "calibration state {}: resumed {n} observations",
+                        cfg.run.state
+                    );
                 }
                 Ok(None) => log::info!("calibration state {}: new file", cfg.run.state),
                 Err(e) => log::warn!("calibration state {}: {e}; starting afresh", cfg.run.state),

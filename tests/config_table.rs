@@ -5,7 +5,7 @@
 use stature::config::Config;
 
 /// Keys where the "huge" probe is legitimately in range.
-const HUGE_IS_VALID: &[&str] = &["run.frames"];
+const HUGE_IS_VALID: &[&str] = &["run.frames", "track.seed", "calibrate.seed", "measure.seed"];
 /// Keys where the "negative" probe is legitimately in range (none so far).
 const NEGATIVE_IS_VALID: &[&str] = &[];
 

@@ -23,6 +23,7 @@
 //! (thresholds in the config), and a final one at the end. The store and the
 //! estimate persist in a state file ([`state`]).
 
+pub mod eval;
 pub mod geometry;
 pub mod state;
 pub mod synth;

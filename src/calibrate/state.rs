@@ -96,6 +96,19 @@ pub struct StateFile {
     buf: Vec<u8>,
 }
 
+/// Parses the bytes of a state file (the fuzzed entry point of [`StateFile::load`]).
+pub fn parse_state(bytes: &[u8]) -> Result<Saved, StateError> {
+    let saved: Saved =
+        serde_json::from_slice(bytes).map_err(|e| StateError::Corrupt(e.to_string()))?;
+    if saved.version != STATE_VERSION {
+        return Err(StateError::Corrupt(format!(
+            "version {} (expected {STATE_VERSION})",
+            saved.version
+        )));
+    }
+    Ok(saved)
+}
+
 impl StateFile {
     /// A state file at `path`; `capacity` bytes of serialisation buffer.
     pub fn new(path: &Path, capacity: usize) -> Self {
@@ -125,15 +138,7 @@ impl StateFile {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(StateError::Io(e)),
         };
-        let saved: Saved =
-            serde_json::from_slice(&text).map_err(|e| StateError::Corrupt(e.to_string()))?;
-        if saved.version != STATE_VERSION {
-            return Err(StateError::Corrupt(format!(
-                "version {} (expected {STATE_VERSION})",
-                saved.version
-            )));
-        }
-        Ok(Some(saved))
+        parse_state(&text).map(Some)
     }
 
     /// Writes atomically: temp file, fsync, rename, fsync of the directory.

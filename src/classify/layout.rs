@@ -1,7 +1,7 @@
 //! The feature layout: window size, cell sizes, block selection, and the
 //! order in which features appear in the vector the SVM sees.
 //!
-//! # Feature vector (format version 1)
+//! # Feature vector (feature code version 2)
 //!
 //! A region's box is resampled to a `win_w`×`win_h` window (see
 //! [`super::window`]). The vector is, in this order:
@@ -32,7 +32,7 @@ pub const BLOCK_DIM: usize = 4 * HOG_BINS;
 pub const LBP_BINS: usize = 59;
 /// Bumped whenever feature arithmetic changes in a way the layout
 /// parameters do not show (it feeds [`Layout::hash`]).
-pub const FEATURE_VERSION: u32 = 1;
+pub const FEATURE_VERSION: u32 = 2;
 /// Largest window side accepted, in pixels (bounds every scratch buffer and
 /// the Q formats in [`super::hog`]).
 pub const MAX_WINDOW_SIDE: u16 = 256;

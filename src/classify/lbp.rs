@@ -38,6 +38,8 @@ pub struct Lbp {
     table: [u8; 256],
     sqrt_q: Vec<u8>,
     counts: Vec<u16>,
+    bank: Vec<u16>,
+    col_base: Vec<u16>,
     codes: Vec<u8>,
     ncx: usize,
     cell: usize,
@@ -59,6 +61,10 @@ impl Lbp {
             table: uniform_table(),
             sqrt_q,
             counts: vec![0; ncx * ncy * LBP_BINS],
+            bank: vec![0; ncx * ncy * LBP_BINS],
+            col_base: (0..usize::from(layout.win_w))
+                .map(|x| ((x / cell) * LBP_BINS) as u16)
+                .collect(),
             codes: vec![0; usize::from(layout.win_w)],
             ncx,
             cell,
@@ -76,6 +82,7 @@ impl Lbp {
     /// Counts the codes of a bordered window (`stride = w + 2`) per cell.
     pub fn histograms(&mut self, win: &[u8], stride: usize) {
         self.counts.fill(0);
+        self.bank.fill(0);
         let (w, t) = (self.w, self.threshold);
         for y in 0..self.h {
             let up = &win[y * stride..y * stride + w + 2];
@@ -99,11 +106,18 @@ impl Lbp {
                     *c |= u8::from(p >= m.saturating_add(t)) << k;
                 }
             }
+            // Even and odd columns count into two banks (summed below) so
+            // runs of equal codes do not serialise on one counter.
             let row = (y / self.cell) * self.ncx * LBP_BINS;
-            for (x, &c) in codes.iter().enumerate() {
-                let i = row + (x / self.cell) * LBP_BINS + usize::from(self.table[usize::from(c)]);
-                self.counts[i] += 1;
+            for (c, base) in codes.chunks_exact(2).zip(self.col_base.chunks_exact(2)) {
+                self.counts
+                    [row + usize::from(base[0]) + usize::from(self.table[usize::from(c[0])])] += 1;
+                self.bank
+                    [row + usize::from(base[1]) + usize::from(self.table[usize::from(c[1])])] += 1;
             }
+        }
+        for (c, b) in self.counts.iter_mut().zip(&self.bank) {
+            *c += b;
         }
     }
 

@@ -236,6 +236,24 @@ pub fn pets_frame_samples(
     out: &mut Vec<Labelled>,
 ) {
     let boxes: Vec<FBox> = gt.iter().map(gt_fbox).collect();
+    let hidden = vec![false; boxes.len()];
+    frame_samples(&boxes, &hidden, &[], w, h, per, rng, out);
+}
+
+/// Labelled boxes of one frame from its people (`boxes`, with `hidden[i]`
+/// set for a person partly hidden by something other than people, e.g. a
+/// prop) and other objects (`others`, kept clear of background boxes).
+#[allow(clippy::too_many_arguments)]
+pub fn frame_samples(
+    boxes: &[FBox],
+    hidden: &[bool],
+    others: &[FBox],
+    w: usize,
+    h: usize,
+    per: PerFrame,
+    rng: &mut Rng,
+    out: &mut Vec<Labelled>,
+) {
     let inside =
         |b: &FBox| b[0] >= 2.0 && b[1] >= 2.0 && b[2] <= w as f64 - 3.0 && b[3] <= h as f64 - 3.0;
     let occlusion = |i: usize| -> f64 {
@@ -248,7 +266,7 @@ pub fn pets_frame_samples(
             .min(1.0)
     };
     let clean: Vec<usize> = (0..boxes.len())
-        .filter(|&i| inside(&boxes[i]) && occlusion(i) <= CLEAN_OCCLUSION)
+        .filter(|&i| inside(&boxes[i]) && !hidden[i] && occlusion(i) <= CLEAN_OCCLUSION)
         .collect();
     let mut push = |kind: Kind, b: &FBox| {
         if let Some(bbox) = to_bbox(b, w, h) {
@@ -313,6 +331,7 @@ pub fn pets_frame_samples(
             // is substantially inside it.
             let clear = boxes
                 .iter()
+                .chain(others)
                 .all(|p| coverage(&c, p) < 0.1 && coverage(p, &c) < 0.2);
             if clear {
                 push(Kind::Background, &c);
@@ -460,5 +479,79 @@ mod tests {
         let mut b = Rng::new(3);
         assert!((0..100).all(|_| a.next_u64() == b.next_u64()));
         assert_ne!(Rng::new(4).next_u64(), Rng::new(3).next_u64());
+    }
+}
+
+/// Labelled boxes of simulated scenes: [`frame_samples`] on the people in
+/// view (a person less than 85 % visible counts as hidden), plus every car
+/// and dog at least half visible as a negative of its kind.
+pub mod sim {
+    use super::*;
+    use crate::frame::Frame;
+    use crate::source::sim::people::Kind as SimKind;
+    use crate::source::sim::SimSource;
+
+    /// Calls `each(frame_index, luma, samples)` for every `stride`-th frame
+    /// of scene `name` with `seed`.
+    pub fn for_sim_frames(
+        name: &str,
+        seed: u64,
+        stride: u64,
+        per: PerFrame,
+        rng: &mut Rng,
+        mut each: impl FnMut(u64, Plane<'_>, &[Labelled]),
+    ) -> Result<(), String> {
+        let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
+        let size = crate::source::FrameSource::info(&src).size;
+        let mut frame = Frame::new(size);
+        let mut out = Vec::new();
+        let mut k = 0;
+        while k < src.frames() {
+            src.render(k, &mut frame);
+            let mut people = Vec::new();
+            let mut hidden = Vec::new();
+            let mut others = Vec::new();
+            out.clear();
+            for o in src.truth() {
+                let b = [
+                    f64::from(o.bbox[0]),
+                    f64::from(o.bbox[1]),
+                    f64::from(o.bbox[2]),
+                    f64::from(o.bbox[3]),
+                ];
+                match o.kind {
+                    SimKind::Person => {
+                        people.push(b);
+                        hidden.push(o.visible_fraction < 0.85);
+                    }
+                    SimKind::Car | SimKind::Dog => {
+                        others.push(b);
+                        if o.visible_fraction >= 0.5 {
+                            let kind = if o.kind == SimKind::Car {
+                                Kind::Car
+                            } else {
+                                Kind::Dog
+                            };
+                            if let Some(bbox) = to_bbox(&jitter(&b, rng), size.width, size.height) {
+                                out.push(Labelled { kind, bbox });
+                            }
+                        }
+                    }
+                }
+            }
+            frame_samples(
+                &people,
+                &hidden,
+                &others,
+                size.width,
+                size.height,
+                per,
+                rng,
+                &mut out,
+            );
+            each(k, frame.luma(), &out);
+            k += stride;
+        }
+        Ok(())
     }
 }

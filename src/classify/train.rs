@@ -48,6 +48,8 @@ pub struct TrainOptions {
     pub pets_stride: u32,
     /// Also evaluate on the held-out frames and append it to the report.
     pub eval: bool,
+    /// Add simulated scenes (seeds [`SIM_TRAIN_SEEDS`]) to training.
+    pub sim: bool,
 }
 
 /// `C` values tried by cross-validation.
@@ -302,8 +304,72 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
             }
         }
     })?;
+    if o.sim {
+        for (k, scene) in SIM_SCENES.iter().enumerate() {
+            for &seed in SIM_TRAIN_SEEDS {
+                samples::sim::for_sim_frames(
+                    scene,
+                    seed,
+                    SIM_STRIDE,
+                    per,
+                    &mut rng,
+                    |_, luma, boxes| {
+                        for s in boxes {
+                            if let Some(x) = ex.extract(luma, &s.bbox) {
+                                d.push(x, s.kind, Origin::Sim, (k % 5) as u8);
+                            }
+                        }
+                    },
+                )?;
+            }
+        }
+    }
     let _ = writeln!(log, "base set: {}", counts(&d));
     Ok(d)
+}
+
+/// Simulated scenes used for training and evaluation.
+pub const SIM_SCENES: [&str; 6] = ["plaza", "low", "mid", "high", "wide", "busy"];
+/// Seeds of the simulated clips used for training.
+pub const SIM_TRAIN_SEEDS: &[u64] = &[1, 2];
+/// Seeds of the held-out simulated clips (never trained on).
+pub const SIM_EVAL_SEEDS: &[u64] = &[101];
+/// Every n-th simulated frame is sampled.
+pub const SIM_STRIDE: u64 = 10;
+
+/// Scores `model` on held-out simulated clips (seeds [`SIM_EVAL_SEEDS`]).
+pub fn evaluate_sim(model: &Model, seed: u64) -> Result<Evaluation, String> {
+    let cfg = ClassifyConfig {
+        min_height: 8,
+        ..Default::default()
+    };
+    let mut cls = Classifier::with_model(model.clone(), &cfg);
+    let mut rng = Rng::new(seed.wrapping_add(2000));
+    let mut ev = Evaluation::default();
+    for scene in SIM_SCENES {
+        for &s in SIM_EVAL_SEEDS {
+            samples::sim::for_sim_frames(
+                scene,
+                s,
+                SIM_STRIDE,
+                EVAL_PER_FRAME,
+                &mut rng,
+                |f, luma, boxes| {
+                    for b in boxes {
+                        let v = cls.classify_box(luma, &b.bbox);
+                        ev.rows.push(Scored {
+                            origin: Origin::Sim,
+                            kind: b.kind,
+                            score: v.score,
+                            frame: f as u32,
+                            bbox: b.bbox,
+                        });
+                    }
+                },
+            )?;
+        }
+    }
+    Ok(ev)
 }
 
 /// Hard negatives: every training frame, many candidates, those the first
@@ -431,7 +497,9 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     );
     let _ = writeln!(
         log,
-        "simulated scenes: not available on this branch yet (trained on MIT + PETS only)\n"
+        "simulated scenes: {} (scenes {:?}, training seeds {:?}, every {} frames; held out: seeds {:?})\n",
+        if o.sim { "used" } else { "not used" },
+        SIM_SCENES, SIM_TRAIN_SEEDS, SIM_STRIDE, SIM_EVAL_SEEDS
     );
     let mut ex = Extractor::new(l);
     let mut d = base_set(o, &mut ex, &mut log)?;
@@ -507,8 +575,12 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     );
     let _ = writeln!(log, "training time {:.1} s", t0.elapsed().as_secs_f64());
     if o.eval {
-        let ev = evaluate_pets(&o.data_dir, &model, o.seed)?;
-        let _ = writeln!(log, "\n## Held-out evaluation (PETS frames 600-794)\n");
+        let mut ev = evaluate_pets(&o.data_dir, &model, o.seed)?;
+        ev.rows.extend(evaluate_sim(&model, o.seed)?.rows);
+        let _ = writeln!(
+            log,
+            "\n## Held-out evaluation (PETS frames 600-794, sim seeds {SIM_EVAL_SEEDS:?})\n"
+        );
         log.push_str(&ev.table());
         log.push('\n');
         log.push_str(&ev.det_table());
@@ -637,24 +709,41 @@ impl Evaluation {
         s
     }
 
-    /// DET/ROC table: miss rate and false-positive rate per threshold.
+    /// DET/ROC table: miss rate and false-positive rate per threshold,
+    /// over all rows and per source.
     pub fn det_table(&self) -> String {
-        let mut s = String::from(
-            "| threshold | miss rate | false-positive rate |\n| ---: | ---: | ---: |\n",
-        );
+        let origins: Vec<Origin> = [Origin::Mit, Origin::Pets, Origin::Sim]
+            .into_iter()
+            .filter(|o| self.rows.iter().any(|r| r.origin == *o))
+            .collect();
+        let mut s = String::from("| threshold | miss rate (all) | false-positive rate (all) |");
+        for o in &origins {
+            let _ = write!(s, " miss {} | FP {} |", o.name(), o.name());
+        }
+        s.push_str("\n| ---: | ---: | ---: |");
+        for _ in &origins {
+            s.push_str(" ---: | ---: |");
+        }
+        s.push('\n');
         for k in -8..=8 {
             let t = k as f32 * 0.25;
             let e = Evaluation {
                 rows: self.rows.clone(),
                 threshold: t,
             };
-            let m = e.metrics(|_| true);
-            let _ = writeln!(
-                s,
-                "| {t:+.2} | {:.2} % | {:.2} % |",
-                m.fn_ as f64 * 100.0 / (m.tp + m.fn_).max(1) as f64,
-                m.fp as f64 * 100.0 / (m.fp + m.tn).max(1) as f64
-            );
+            let rate = |m: Metrics| {
+                (
+                    m.fn_ as f64 * 100.0 / (m.tp + m.fn_).max(1) as f64,
+                    m.fp as f64 * 100.0 / (m.fp + m.tn).max(1) as f64,
+                )
+            };
+            let (mr, fp) = rate(e.metrics(|_| true));
+            let _ = write!(s, "| {t:+.2} | {mr:.2} % | {fp:.2} % |");
+            for o in &origins {
+                let (mr, fp) = rate(e.metrics(|r| r.origin == *o));
+                let _ = write!(s, " {mr:.2} % | {fp:.2} % |");
+            }
+            s.push('\n');
         }
         s
     }

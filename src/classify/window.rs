@@ -54,11 +54,12 @@ pub fn window_rect(bbox: &BBox, layout: &Layout) -> WindowRect {
 }
 
 /// One axis of the sampling grid: for each window coordinate (border
-/// included), the two source indices and the Q8 weight of the second.
+/// included), the first source index `a` (the second is `a + 1`) and the
+/// Q8 weight of the second, 0..=256. Outside the plane the weight pins the
+/// sample to the edge pixel.
 #[derive(Clone, Debug, Default)]
 struct Axis {
     a: Vec<u32>,
-    b: Vec<u32>,
     frac: Vec<u32>,
 }
 
@@ -66,32 +67,30 @@ impl Axis {
     fn with_len(n: usize) -> Self {
         Axis {
             a: vec![0; n],
-            b: vec![0; n],
             frac: vec![0; n],
         }
     }
 
     /// Fills the grid for an edge at `start` (Q16) with `n - 2` window
-    /// pixels spanning `span` (Q16) over a source axis of `len` pixels.
+    /// pixels spanning `span` (Q16) over a source axis of `len ≥ 2` pixels.
     fn fill(&mut self, start: i64, span: i64, len: usize) {
         let n = self.a.len() as i64;
         let inner = n - 2;
-        let last = len.saturating_sub(1) as i64;
+        let last = len as i64 - 1;
         for i in 0..n {
             // Centre of window pixel i − 1 (the border is pixel −1); with
             // pixel centres at integers its floor is the left sample.
             let s = start + ((2 * (i - 1) + 1) * span).div_euclid(2 * inner);
             let ip = s >> 16;
-            let (a, b, f) = if ip < 0 {
-                (0, 0, 0)
+            let (a, f) = if ip < 0 {
+                (0, 0)
             } else if ip >= last {
-                (last, last, 0)
+                (last - 1, 256)
             } else {
-                (ip, ip + 1, (s >> 8) & 255)
+                (ip, (s >> 8) & 255)
             };
             let k = i as usize;
             self.a[k] = a as u32;
-            self.b[k] = b as u32;
             self.frac[k] = f as u32;
         }
     }
@@ -137,26 +136,26 @@ impl Sampler {
     /// Samples `rect` of `luma` into `out` (`len()` bytes, row stride
     /// `stride()`). Bilinear in Q8 weights; the sum of four products is at
     /// most 255·2^16 and rounds to nearest. Returns `false` (and leaves
-    /// `out` alone) for an empty plane or a short `out`.
+    /// `out` alone) for a plane under 2×2 pixels or a short `out`.
     pub fn sample(&mut self, luma: Plane<'_>, rect: &WindowRect, out: &mut [u8]) -> bool {
-        if luma.width == 0 || luma.height == 0 || out.len() < self.len() {
+        if luma.width < 2 || luma.height < 2 || out.len() < self.len() {
             return false;
         }
         self.xs.fill(rect.left, rect.width, luma.width);
         self.ys.fill(rect.top, rect.height, luma.height);
         let stride = self.stride();
         for (j, row_out) in out.chunks_exact_mut(stride).take(self.h + 2).enumerate() {
-            let ra = luma.row(self.ys.a[j] as usize);
-            let rb = luma.row(self.ys.b[j] as usize);
+            let ya = self.ys.a[j] as usize;
+            let ra = luma.row(ya);
+            let rb = luma.row(ya + 1);
             let fy = self.ys.frac[j];
-            for (i, o) in row_out.iter_mut().enumerate() {
-                let (xa, xb, fx) = (
-                    self.xs.a[i] as usize,
-                    self.xs.b[i] as usize,
-                    self.xs.frac[i],
-                );
-                let top = u32::from(ra[xa]) * (256 - fx) + u32::from(ra[xb]) * fx;
-                let bot = u32::from(rb[xa]) * (256 - fx) + u32::from(rb[xb]) * fx;
+            for ((o, &xa), &fx) in row_out.iter_mut().zip(&self.xs.a).zip(&self.xs.frac) {
+                let xa = xa as usize;
+                let (Some(p), Some(q)) = (ra.get(xa..xa + 2), rb.get(xa..xa + 2)) else {
+                    continue;
+                };
+                let top = u32::from(p[0]) * (256 - fx) + u32::from(p[1]) * fx;
+                let bot = u32::from(q[0]) * (256 - fx) + u32::from(q[1]) * fx;
                 *o = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
             }
         }

@@ -24,10 +24,13 @@
 //!   a background object that moves away also takes that long to heal.
 //! * Shadows: a foreground pixel 0.7–0.95 times as bright as a background
 //!   mode counts as shadow (luma only; OpenCV's 0.5 erased grey clothing on
-//!   PETS). `bench/RESULTS.md` ("Detection") has the measurements and the
-//!   open question of a chroma term.
+//!   PETS). A pixel whose chroma differs from the [`chroma`] background by
+//!   more than `chroma_threshold` is foreground anyway (keeps people whose
+//!   clothes match the ground in luma whole, and coloured "shadows").
+//!   `bench/RESULTS.md` ("Detection") has the measurements.
 
 pub mod background;
+pub mod chroma;
 pub mod morphology;
 pub mod regions;
 
@@ -36,6 +39,7 @@ use crate::frame::{Frame, Size};
 use serde::{Deserialize, Serialize};
 
 use background::{Background, FrameStats};
+use chroma::ChromaBackground;
 use morphology::BitMask;
 use regions::Labeller;
 
@@ -73,6 +77,10 @@ pub struct DetectConfig {
     pub shadow_min_ratio: f64,
     /// Lightest shadow, as a fraction of the background brightness.
     pub shadow_max_ratio: f64,
+    /// Chroma term: a pixel whose (Cb, Cr) differs from a running-average
+    /// chroma background by more than this L1 distance (grey levels) is
+    /// foreground too, shadow or not (0 = off; luma GMM only).
+    pub chroma_threshold: u32,
     /// Rescale the model when the median brightness ratio frame/model jumps.
     pub gain_compensation: bool,
     /// Gain change (fraction) that triggers a rescale.
@@ -95,6 +103,9 @@ pub struct DetectConfig {
     pub max_runs_per_row: u32,
 }
 
+/// Default `chroma_threshold` (see `bench/RESULTS.md`, "Detection").
+const CHROMA_THRESHOLD: u32 = 16;
+
 impl Default for DetectConfig {
     fn default() -> Self {
         DetectConfig {
@@ -112,6 +123,7 @@ impl Default for DetectConfig {
             shadow: true,
             shadow_min_ratio: 0.7,
             shadow_max_ratio: 0.95,
+            chroma_threshold: CHROMA_THRESHOLD,
             gain_compensation: true,
             gain_threshold: 0.03,
             relearn_fraction: 0.6,
@@ -152,6 +164,7 @@ impl DetectConfig {
             self.shadow_max_ratio,
             self.shadow_min_ratio..=1.0,
         )?;
+        check_range("detect.chroma_threshold", self.chroma_threshold, 0..=255)?;
         check_range("detect.gain_threshold", self.gain_threshold, 0.005..=0.5)?;
         check_range("detect.relearn_fraction", self.relearn_fraction, 0.1..=1.0)?;
         check_range("detect.open_radius", self.open_radius, 0..=4)?;
@@ -306,6 +319,8 @@ impl RegionSet {
 pub struct Detector {
     size: Size,
     background: Background,
+    chroma: ChromaBackground,
+    chroma_fg: BitMask,
     raw: BitMask,
     clean: BitMask,
     scratch: BitMask,
@@ -322,6 +337,18 @@ impl Detector {
         Detector {
             size,
             background: Background::new(cfg, size.width, size.height),
+            chroma: ChromaBackground::new(
+                size.width,
+                size.height,
+                cfg.history,
+                // Full rate at foreground too: a slower one (as the GMM's
+                // `foreground_rate`) left chroma ghosts behind people who
+                // stood at start-up (sim:low false regions 0.5 -> 2.2 per
+                // frame); standing people are held by the luma GMM.
+                1.0,
+                cfg.chroma_threshold,
+            ),
+            chroma_fg: BitMask::new(size.width, size.height),
             raw: BitMask::new(size.width, size.height),
             clean: BitMask::new(size.width, size.height),
             scratch: BitMask::new(size.width, size.height),
@@ -347,14 +374,31 @@ impl Detector {
         self.clean_up();
         self.label(out);
     }
-    /// Stage 1: updates the background model and fills [`Self::raw_mask`].
+    /// Stage 1: updates the background models and fills [`Self::raw_mask`]
+    /// (luma GMM) and [`Self::chroma_mask`].
     pub fn segment(&mut self, frame: &Frame) {
         let wpr = self.raw.words_per_row();
         self.background.apply(frame, self.raw.words_mut(), wpr);
+        if self.background.stats().relearn {
+            self.chroma.relearn(8);
+        }
+        self.chroma_fg.words_mut().fill(0);
+        self.chroma.apply(frame, self.chroma_fg.words_mut(), wpr);
     }
-    /// Stage 2: opening then closing of the raw mask into [`Self::mask`].
+    /// Stage 2: the union of the luma and chroma masks, opened then closed,
+    /// into [`Self::mask`].
     pub fn clean_up(&mut self) {
         self.clean.copy_from(&self.raw);
+        if self.chroma.enabled() {
+            for (c, &f) in self
+                .clean
+                .words_mut()
+                .iter_mut()
+                .zip(self.chroma_fg.words())
+            {
+                *c |= f;
+            }
+        }
         let (o, cx, cy) = (self.open_radius, self.close_radius, self.close_radius_y);
         morphology::open(&mut self.clean, &mut self.scratch, o, o);
         morphology::close(&mut self.clean, &mut self.scratch, cx, cy);
@@ -367,6 +411,10 @@ impl Detector {
     /// The foreground mask straight from the model (shadows excluded).
     pub fn raw_mask(&self) -> &BitMask {
         &self.raw
+    }
+    /// The chroma foreground of the last frame (empty when the term is off).
+    pub fn chroma_mask(&self) -> &BitMask {
+        &self.chroma_fg
     }
     /// The cleaned foreground mask the regions come from.
     pub fn mask(&self) -> &BitMask {

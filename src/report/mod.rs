@@ -140,9 +140,15 @@ impl Reporter {
 }
 
 /// Starts the I/O thread writing every record from `rx` to every sink.
-/// The thread ends when the queue is closed and drained. Returns once the
-/// thread has finished its own start-up (a new thread allocates as it
-/// starts), so that the loop's steady state begins with nothing pending.
+/// The thread ends when the queue is closed and drained.
+///
+/// Returns once the thread has made its one-time allocations, so that an
+/// allocation count taken afterwards sees only the steady state: the first
+/// time a thread blocks on a crossbeam channel it allocates (a cached
+/// thread-local wait context, the channel's waiter list); left to happen
+/// whenever the new thread first got scheduled, that raced with the loop's
+/// baseline and showed up as a few allocations in every `status` record
+/// (seen on an emulated aarch64 board reading vivid).
 pub fn spawn_io(
     rx: Receiver<Record>,
     mut sinks: Vec<Sink>,
@@ -158,13 +164,6 @@ pub fn spawn_io(
             for s in sinks.iter_mut() {
                 s.attach_counters(&counters);
             }
-            // crossbeam allocates the first time a thread parks, and the
-            // first time a channel's waker registers a waiter: park once on
-            // this very channel now (nothing is queued yet, so it times out;
-            // 2 ms is past crossbeam's spinning phase) so that both happen
-            // during start-up rather than in the middle of the run.
-            let early = rx.recv_timeout(std::time::Duration::from_millis(2)).ok();
-            let _ = ready_tx.send(());
             let mut deliver = |record: Record, sinks: &mut Vec<Sink>| {
                 let bytes = match encode::encode(&record, format, &mut buf) {
                     Ok(b) => b,
@@ -196,9 +195,33 @@ pub fn spawn_io(
                     counters.delivered.fetch_add(1, Ordering::Relaxed);
                 }
             };
-            if let Some(record) = early {
-                deliver(record, &mut sinks);
+            // Warm up: block on the (still empty) queue until one wait has
+            // allocated and the next has not. crossbeam allocates the first
+            // time a thread parks and the first time a channel's waiter list
+            // grows; a timed-out wait does not always reach the blocking path
+            // (the spin/yield phase runs before the deadline is looked at, and
+            // under load can outlast it), so a single quiet wait proves
+            // nothing. Nothing is sent before `ready`; deliver anything that
+            // came anyway. Skipped when the counting allocator is not
+            // installed (its count stays 0); bounded: at most 100 waits of 20 ms.
+            if crate::alloc_count::allocations() > 0 {
+                let mut allocated = false;
+                for _ in 0..100 {
+                    let before = crate::alloc_count::thread_allocations();
+                    match rx.recv_timeout(std::time::Duration::from_millis(20)) {
+                        Ok(record) => deliver(record, &mut sinks),
+                        Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+                        Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
+                            let quiet = crate::alloc_count::thread_allocations() == before;
+                            if allocated && quiet {
+                                break;
+                            }
+                            allocated |= !quiet;
+                        }
+                    }
+                }
             }
+            let _ = ready_tx.send(());
             while let Ok(record) = rx.recv() {
                 deliver(record, &mut sinks);
                 while let Ok(record) = rx.try_recv() {

@@ -292,10 +292,13 @@ mod device {
         fn try_reconnect(&mut self) -> bool {
             let mut candidates = vec![self.spec.path.clone()];
             if let Ok(dir) = std::fs::read_dir("/dev") {
+                // Only video nodes become strings: /dev holds hundreds of entries
+                // and this runs at every retry while the camera is away.
                 let mut others: Vec<String> = dir
                     .filter_map(|e| e.ok())
+                    .filter(|e| e.file_name().as_encoded_bytes().starts_with(b"video"))
                     .map(|e| e.path().display().to_string())
-                    .filter(|p| p.starts_with("/dev/video") && *p != self.spec.path)
+                    .filter(|p| *p != self.spec.path)
                     .collect();
                 others.sort();
                 candidates.extend(others);

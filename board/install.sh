@@ -1,0 +1,133 @@
+#!/bin/sh
+# Installs stature on a board (run as root on the board):
+#   sh install.sh --profile rpi4-aarch64.toml [--binary ./stature]
+#                 [--report udp:192.168.1.20:9000]... [--no-systemd]
+# Copies the binary to /usr/local/bin, the profile to /etc/stature/stature.toml
+# (--report replaces the profile's placeholder sink "udp:127.0.0.1:9000";
+# other sinks, e.g. a UART, stay), the unit to /etc/systemd/system, the
+# profile's [board] caps into a unit drop-in; creates the `stature` system
+# user in groups video and dialout; enables and starts the service.
+# Idempotent: run it again to upgrade the binary or change the profile.
+# POSIX sh and busybox-compatible; DESTDIR=/some/root installs into a tree.
+set -eu
+
+here=$(cd "$(dirname "$0")" && pwd)
+profile=""
+binary=""
+reports=""
+systemd=1
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --profile) profile=$2; shift 2 ;;
+        --binary) binary=$2; shift 2 ;;
+        --report) reports="$reports${reports:+, }\"$2\""; shift 2 ;;
+        --no-systemd) systemd=0; shift ;;
+        -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+        *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
+    esac
+done
+[ -n "$profile" ] || { echo "install.sh: --profile FILE is required (one of $here/*.toml)" >&2; exit 2; }
+[ -f "$profile" ] || profile=$here/$profile
+[ -f "$profile" ] || { echo "install.sh: no profile $profile" >&2; exit 2; }
+if [ -z "$binary" ]; then
+    for b in "$here/stature" "$here/../stature" "$(pwd)/stature"; do
+        [ -x "$b" ] && binary=$b && break
+    done
+fi
+[ -n "$binary" ] && [ -x "$binary" ] || { echo "install.sh: no stature binary (use --binary PATH)" >&2; exit 2; }
+D=${DESTDIR:-}
+
+# --- user and groups (shadow utils, busybox adduser, or plain files on
+# images that have neither).
+has() { command -v "$1" >/dev/null 2>&1; }
+group_exists() { grep -q "^$1:" "$D/etc/group"; }
+user_exists() { grep -q "^$1:" "$D/etc/passwd"; }
+add_group() {
+    group_exists "$1" && return 0
+    if [ -z "$D" ] && has groupadd; then groupadd --system "$1"
+    elif [ -z "$D" ] && has addgroup; then addgroup -S "$1"
+    else
+        gid=999
+        while cut -d: -f3 "$D/etc/group" | grep -qx "$gid"; do gid=$((gid - 1)); done
+        echo "$1:x:$gid:" >>"$D/etc/group"
+    fi
+}
+add_group stature
+add_group video
+add_group dialout
+if ! user_exists stature; then
+    if [ -z "$D" ] && has useradd; then
+        useradd --system --gid stature --no-create-home --home-dir /var/lib/stature \
+            --shell /usr/sbin/nologin --comment "stature camera service" stature
+    elif [ -z "$D" ] && has adduser; then
+        adduser -S -D -H -h /var/lib/stature -s /sbin/nologin -G stature stature
+    else
+        gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
+        uid=$gid
+        while cut -d: -f3 "$D/etc/passwd" | grep -qx "$uid"; do uid=$((uid - 1)); done
+        echo "stature:x:$uid:$gid:stature camera service:/var/lib/stature:/sbin/nologin" >>"$D/etc/passwd"
+    fi
+fi
+# Supplementary groups: append the user to video and dialout.
+for g in video dialout; do
+    line=$(grep "^$g:" "$D/etc/group")
+    members=${line##*:}
+    case ",$members," in
+        *,stature,*) ;;
+        *) if [ -z "$D" ] && has usermod; then usermod -a -G "$g" stature
+           else sed -i "s/^$g:\([^:]*\):\([^:]*\):\(.*\)\$/$g:\1:\2:\3${members:+,}stature/" "$D/etc/group"; fi ;;
+    esac
+done
+
+# --- files.
+mkdir -p "$D/usr/local/bin" "$D/etc/stature" "$D/etc/systemd/system/stature.service.d"
+# Copy then rename: replacing a running binary in place would fail (ETXTBSY).
+cp "$binary" "$D/usr/local/bin/.stature.new"
+chmod 0755 "$D/usr/local/bin/.stature.new"
+mv -f "$D/usr/local/bin/.stature.new" "$D/usr/local/bin/stature"
+if [ -n "$reports" ]; then
+    # Profiles name the workstation as the placeholder udp:127.0.0.1:9000.
+    grep -q '"udp:127.0.0.1:9000"' "$profile" || {
+        echo "install.sh: $profile has no \"udp:127.0.0.1:9000\" sink for --report to replace" >&2
+        exit 2
+    }
+    sed "s|\"udp:127.0.0.1:9000\"|$reports|" "$profile" >"$D/etc/stature/stature.toml.new"
+else
+    cp "$profile" "$D/etc/stature/stature.toml.new"
+fi
+chmod 0644 "$D/etc/stature/stature.toml.new"
+# Refuse a profile the binary does not accept (when the binary runs here).
+if [ -z "$D" ]; then
+    "$D/usr/local/bin/stature" config --check "$D/etc/stature/stature.toml.new"
+fi
+mv -f "$D/etc/stature/stature.toml.new" "$D/etc/stature/stature.toml"
+cp "$here/stature.service" "$D/etc/systemd/system/stature.service"
+chmod 0644 "$D/etc/systemd/system/stature.service"
+# Board caps from the profile's [board] section -> systemd resource control.
+board_value() {
+    sed -n '/^\[board\]/,/^\[/ s/^'"$1"' *= *\([0-9]*\).*/\1/p' "$D/etc/stature/stature.toml" | head -1
+}
+mem=$(board_value memory_max_mib)
+cpu=$(board_value cpu_quota_percent)
+{
+    echo "# From the [board] section of /etc/stature/stature.toml (board/install.sh)."
+    echo "[Service]"
+    [ -n "$mem" ] && [ "$mem" != 0 ] && echo "MemoryMax=${mem}M"
+    [ -n "$cpu" ] && [ "$cpu" != 0 ] && echo "CPUQuota=${cpu}%"
+    true
+} >"$D/etc/systemd/system/stature.service.d/board.conf"
+
+# --- service.
+if [ "$systemd" = 1 ] && [ -z "$D" ] && has systemctl && [ -d /run/systemd/system ]; then
+    systemctl daemon-reload
+    systemctl enable stature.service
+    systemctl restart stature.service
+    echo "install.sh: stature enabled and started; logs: journalctl -u stature -f"
+else
+    # What StateDirectory= would create.
+    mkdir -p "$D/var/lib/stature"
+    chmod 0750 "$D/var/lib/stature"
+    if [ -z "$D" ]; then chown stature:stature /var/lib/stature; fi
+    echo "install.sh: installed without systemd; run as: setpriv --reuid stature --regid stature --init-groups /usr/local/bin/stature run --config /etc/stature/stature.toml"
+fi
+echo "install.sh: /usr/local/bin/stature, /etc/stature/stature.toml ($(sed -n 's/^name *= *//p' "$D/etc/stature/stature.toml" | head -1)), /etc/systemd/system/stature.service"

@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# Bit-exactness across targets: the same Y4M input must give byte-identical
+# report streams from the x86_64 host binary and the aarch64, armv7 and
+# static aarch64-musl binaries (run under qemu-user). The only field allowed
+# to differ is `status.fps` (frames per wall-clock second), set to 0 here.
+#
+#   cross/bitexact.sh                  # the binaries cross/build.sh and the host tests built
+#   cross/bitexact.sh BIN BIN...       # explicit binaries (ARM ones run through binfmt/qemu)
+#
+# Inputs: a synthetic clip made with ffmpeg's testsrc2, the built-in
+# simulated plaza (sim:plaza), and the first frames of PETS 2009 S2.L1 from
+# ../shared/data (required when CI=true).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+T=${CARGO_TARGET_DIR:-target}
+work=$T/cross-cache/bitexact
+mkdir -p "$work"
+frames=${BITEXACT_FRAMES:-150}
+
+die() { echo "bitexact: FAIL: $*" >&2; exit 1; }
+
+bins=("$@")
+if [[ ${#bins[@]} -eq 0 ]]; then
+    # Host: the release binary if built, else the one `cargo test` built.
+    if [[ -x $T/release/stature ]]; then bins+=("$T/release/stature")
+    elif [[ -x $T/debug/stature ]]; then bins+=("$T/debug/stature")
+    else
+        cargo build --locked --release --bin stature
+        bins+=("$T/release/stature")
+    fi
+    for t in aarch64-unknown-linux-gnu armv7-unknown-linux-gnueabihf aarch64-unknown-linux-musl; do
+        for p in release debug; do
+            [[ -x $T/$t/$p/stature ]] && bins+=("$T/$t/$p/stature")
+        done
+    done
+fi
+[[ ${#bins[@]} -ge 2 ]] || die "need at least two binaries, have: ${bins[*]}"
+
+run_one() { # BIN SOURCE -> normalised JSON Lines on stdout
+    local bin=$1 src=$2 prefix=()
+    case $(file -b "$bin") in
+        *aarch64*) prefix=(env QEMU_LD_PREFIX=/usr/aarch64-linux-gnu qemu-aarch64-static) ;;
+        *"ARM, EABI5"*) prefix=(env QEMU_LD_PREFIX=/usr/arm-linux-gnueabihf qemu-arm-static) ;;
+    esac
+    "${prefix[@]}" "$bin" run --quiet --source "$src" --report stdout --format json |
+        sed -E '/"type":"status"/ s/"fps":[^,}]*/"fps":0/'
+}
+
+inputs=()
+synth=$work/testsrc2-320x240.y4m
+if [[ ! -s $synth ]]; then
+    ffmpeg -nostdin -v error -f lavfi -i "testsrc2=size=320x240:rate=25" \
+        -frames:v "$frames" -pix_fmt yuv420p -f yuv4mpegpipe -y "$synth"
+fi
+inputs+=("y4m:$synth")
+# The simulated plaza: rendered in integer/fixed point by design, so the
+# frames themselves must be identical too (people walk: detection,
+# tracking and calibration all run).
+inputs+=("sim:plaza?seed=3&frames=$frames")
+pets=../shared/data/pets2009-s2l1/vtest.avi
+if [[ -f $pets ]]; then
+    clip=$work/pets-${frames}.y4m
+    [[ -s $clip ]] || ffmpeg -nostdin -v error -i "$pets" -frames:v "$frames" \
+        -f yuv4mpegpipe -pix_fmt yuv420p -y "$clip"
+    inputs+=("y4m:$clip")
+elif [[ "${CI:-}" == "true" ]]; then
+    die "../shared/data/pets2009-s2l1/vtest.avi missing in CI"
+else
+    echo "bitexact: ../shared/data missing: synthetic input only"
+fi
+
+fail=0
+for input in "${inputs[@]}"; do
+    ref="" refbin=""
+    name=$(basename "${input%%\?*}" .y4m)
+    for bin in "${bins[@]}"; do
+        out=$work/${name//:/_}.$(echo "$bin" | tr / _).jsonl
+        run_one "$bin" "$input" >"$out" || die "$bin failed on $input"
+        [[ -s $out ]] || die "$bin wrote no records for $input"
+        if [[ -z $ref ]]; then
+            ref=$out refbin=$bin
+            echo "bitexact: $input: reference $bin ($(wc -l <"$out") records, $(grep -c '"type":"height"' "$out" || true) heights)"
+        elif cmp -s "$ref" "$out"; then
+            echo "bitexact: $input: $bin identical"
+        else
+            echo "bitexact: $input: $bin DIFFERS from $refbin:"
+            diff "$ref" "$out" | head -10
+            fail=1
+        fi
+    done
+done
+[[ $fail -eq 0 ]] || die "report streams differ across targets"
+echo "bitexact: ${#bins[@]} binaries x ${#inputs[@]} inputs byte-identical (status.fps normalised)"

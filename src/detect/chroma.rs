@@ -1,0 +1,213 @@
+//! A single-mode chroma background at 4:2:0 resolution, OR-ed into the
+//! luma GMM's foreground mask.
+//!
+//! Why: clothing and paving that are close in luma (the simulated scenes,
+//! grey-on-grey on PETS) leave the luma model with holes that split a
+//! person into pieces, and the luma-only shadow test erases darker clothing
+//! of the paving's hue. A pixel whose (Cb, Cr) differs from the background's
+//! by more than a threshold is foreground whatever its luma says, so this
+//! also acts as the chroma-similarity condition of the shadow test: a
+//! "shadow" of another colour stays foreground.
+//!
+//! The model is a running average per chroma sample (mean Cb and Cr, each
+//! Q8.8 in a `u16`: 4 bytes per chroma sample, 1 byte per luma pixel). All
+//! arithmetic is integer, so the result is bit-exact across platforms.
+
+use crate::frame::Frame;
+
+/// Learning rates are Q12 fractions (4096 = 1).
+const RATE_ONE: i32 = 4096;
+
+/// Per-chroma-sample running mean of Cb and Cr.
+#[derive(Debug)]
+pub struct ChromaBackground {
+    /// Chroma plane width (luma width rounded up, halved).
+    cw: usize,
+    /// Chroma plane height.
+    ch: usize,
+    /// Luma frame width (to clip the last chroma column of odd widths).
+    width: usize,
+    /// Mean Cb, Q8.8.
+    cb: Vec<u16>,
+    /// Mean Cr, Q8.8.
+    cr: Vec<u16>,
+    /// Foreground when `|ΔCb| + |ΔCr|` exceeds this, grey levels (0 = off).
+    threshold: u32,
+    /// Steady learning rate, Q12 (≥ 1).
+    rate_min: i32,
+    /// Factor on the rate at foreground samples, Q8.
+    fg_rate_q8: i32,
+    /// Frames learned (saturating), for the `1/(t+1)` start-up rate.
+    t: u32,
+    /// Foreground chroma samples in the last frame.
+    foreground: u32,
+}
+
+impl ChromaBackground {
+    /// A model for `width × height` luma frames. `history` sets the steady
+    /// rate `1/history`, `foreground_rate` scales it at foreground samples,
+    /// `threshold` is the L1 (Cb, Cr) distance in grey levels (0 = off:
+    /// [`Self::apply`] then does nothing and the model holds no samples).
+    pub fn new(
+        width: usize,
+        height: usize,
+        history: u32,
+        foreground_rate: f64,
+        threshold: u32,
+    ) -> Self {
+        let (cw, ch) = (width.div_ceil(2), height.div_ceil(2));
+        let n = if threshold == 0 { 0 } else { cw * ch };
+        ChromaBackground {
+            cw,
+            ch,
+            width,
+            cb: vec![0; n],
+            cr: vec![0; n],
+            threshold,
+            rate_min: (RATE_ONE / history.max(1) as i32).max(1),
+            fg_rate_q8: (foreground_rate.clamp(0.0, 1.0) * 256.0).round() as i32,
+            t: 0,
+            foreground: 0,
+        }
+    }
+
+    /// Whether the chroma term is on.
+    pub fn enabled(&self) -> bool {
+        self.threshold != 0
+    }
+
+    /// Foreground chroma samples of the last frame.
+    pub fn foreground(&self) -> u32 {
+        self.foreground
+    }
+
+    /// Restarts fast learning (`1/(t+1)` from `t`), e.g. after the luma
+    /// model decided to relearn.
+    pub fn relearn(&mut self, t: u32) {
+        self.t = self.t.min(t);
+    }
+
+    /// Updates the model with `frame` and ORs the chroma foreground, each
+    /// sample covering its 2×2 luma pixels, into `mask` (packed bits, bit
+    /// `x % 64` of word `y * words_per_row + x / 64`, as
+    /// [`super::morphology::BitMask`]).
+    pub fn apply(&mut self, frame: &Frame, mask: &mut [u64], words_per_row: usize) {
+        self.foreground = 0;
+        if !self.enabled() {
+            return;
+        }
+        let (cbp, crp) = (frame.cb(), frame.cr());
+        // α = 1/(t+1) at start-up, then 1/history; Q12 so that
+        // (Δ in Q8.8, |Δ| < 2^16) × rate (≤ 2^12) < 2^28 fits an i32.
+        let rate = (RATE_ONE / (self.t as i32).saturating_add(1)).max(self.rate_min);
+        let rate_fg = (rate * self.fg_rate_q8 >> 8).max(1);
+        let first = self.t == 0;
+        let thr = (self.threshold as i32) << 8;
+        let height = mask.len() / words_per_row.max(1);
+        for cy in 0..self.ch {
+            let (srow_b, srow_r) = (cbp.row(cy), crp.row(cy));
+            let mrow_b = &mut self.cb[cy * self.cw..(cy + 1) * self.cw];
+            let mrow_r = &mut self.cr[cy * self.cw..(cy + 1) * self.cw];
+            // 32 chroma samples make one 64-bit luma mask word.
+            for (j, chunk) in (0..self.cw).step_by(32).enumerate() {
+                let end = (chunk + 32).min(self.cw);
+                let mut bits = 0u32;
+                for cx in chunk..end {
+                    let xb = i32::from(srow_b[cx]) << 8;
+                    let xr = i32::from(srow_r[cx]) << 8;
+                    if first {
+                        mrow_b[cx] = xb as u16;
+                        mrow_r[cx] = xr as u16;
+                        continue;
+                    }
+                    let db = xb - i32::from(mrow_b[cx]);
+                    let dr = xr - i32::from(mrow_r[cx]);
+                    let fg = db.abs() + dr.abs() > thr;
+                    bits |= u32::from(fg) << (cx - chunk);
+                    let r = if fg { rate_fg } else { rate };
+                    // Round to nearest; the mean stays within [0, 255·256].
+                    mrow_b[cx] = (i32::from(mrow_b[cx]) + ((db * r + 2048) >> 12)) as u16;
+                    mrow_r[cx] = (i32::from(mrow_r[cx]) + ((dr * r + 2048) >> 12)) as u16;
+                }
+                if bits == 0 {
+                    continue;
+                }
+                self.foreground += bits.count_ones();
+                let mut word = spread(bits);
+                word |= word << 1;
+                // Clip luma columns at or beyond the frame width (odd widths,
+                // last word).
+                let x0 = j * 64;
+                if x0 + 64 > self.width {
+                    word &= (1u64 << (self.width - x0)) - 1;
+                }
+                for y in [2 * cy, 2 * cy + 1] {
+                    if y < height && j < words_per_row {
+                        mask[y * words_per_row + j] |= word;
+                    }
+                }
+            }
+        }
+        self.t = self.t.saturating_add(1);
+    }
+}
+
+/// Moves bit `i` of `b` to bit `2i` (Morton spread).
+fn spread(b: u32) -> u64 {
+    let mut x = u64::from(b);
+    x = (x | x << 16) & 0x0000_FFFF_0000_FFFF;
+    x = (x | x << 8) & 0x00FF_00FF_00FF_00FF;
+    x = (x | x << 4) & 0x0F0F_0F0F_0F0F_0F0F;
+    x = (x | x << 2) & 0x3333_3333_3333_3333;
+    (x | x << 1) & 0x5555_5555_5555_5555
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::morphology::BitMask;
+    use crate::frame::Size;
+
+    #[test]
+    fn spread_doubles_bits() {
+        assert_eq!(spread(0b1011), 0b1_00_01_01);
+        assert_eq!(spread(u32::MAX), 0x5555_5555_5555_5555);
+    }
+
+    /// A patch of another hue but the same luma becomes foreground over its
+    /// 2×2 luma pixels, clipped at an odd frame width.
+    #[test]
+    fn colour_patch_is_foreground() {
+        let size = Size {
+            width: 71,
+            height: 9,
+        };
+        let mut frame = Frame::new(size);
+        let mut model = ChromaBackground::new(size.width, size.height, 100, 0.25, 10);
+        let mut mask = BitMask::new(size.width, size.height);
+        for _ in 0..20 {
+            frame.y.fill(100);
+            frame.u.fill(120);
+            frame.v.fill(130);
+            let wpr = mask.words_per_row();
+            model.apply(&frame, mask.words_mut(), wpr);
+            assert_eq!(mask.count(), 0);
+        }
+        let cw = size.chroma().width;
+        // Chroma samples 3 and the last one (35: luma 70 only) on row 1.
+        frame.u[cw + 3] = 135;
+        frame.v[cw + 35] = 112;
+        let wpr = mask.words_per_row();
+        model.apply(&frame, mask.words_mut(), wpr);
+        assert_eq!(model.foreground(), 2);
+        assert_eq!(mask.count(), 4 + 2);
+        assert!(mask.get(6, 2) && mask.get(7, 3) && mask.get(70, 2) && mask.get(70, 3));
+        // A change within the threshold is not.
+        let mut mask2 = BitMask::new(size.width, size.height);
+        frame.u.fill(125);
+        frame.v.fill(126);
+        let wpr = mask2.words_per_row();
+        model.apply(&frame, mask2.words_mut(), wpr);
+        assert_eq!(mask2.count(), 0);
+    }
+}

@@ -1,0 +1,174 @@
+//! Every board profile (`board/*.toml`) loads and validates with the real
+//! configuration loader, and agrees with the systemd unit that runs it:
+//! under `ProtectSystem=strict` only the `StateDirectory` is writable, and
+//! the device nodes a profile names must be reachable by the unit's groups.
+
+use stature::config::Config;
+use stature::report::sink::SinkSpec;
+use std::path::{Path, PathBuf};
+
+fn board_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("board")
+}
+
+fn profiles() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(board_dir())
+        .expect("board/ exists")
+        .map(|e| e.expect("readable board/ entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    v.sort();
+    v
+}
+
+fn unit() -> String {
+    std::fs::read_to_string(board_dir().join("stature.service")).expect("board/stature.service")
+}
+
+/// `Key=value` lines of the unit (all of them, in order).
+fn unit_values(unit: &str, key: &str) -> Vec<String> {
+    unit.lines()
+        .filter_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
+        .map(|v| v.trim().to_string())
+        .collect()
+}
+
+#[test]
+fn the_three_board_classes_have_profiles() {
+    let names: Vec<String> = profiles()
+        .iter()
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    for want in ["rpi4-aarch64", "rpi-zero2", "generic-armv7"] {
+        assert!(
+            names.iter().any(|n| n == want),
+            "board/{want}.toml missing: {names:?}"
+        );
+    }
+}
+
+#[test]
+fn every_profile_loads_and_validates() {
+    let profiles = profiles();
+    assert!(!profiles.is_empty());
+    for path in &profiles {
+        let cfg = Config::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let stem = path.file_stem().unwrap().to_string_lossy();
+        assert_eq!(
+            cfg.board.name,
+            stem,
+            "{}: [board] name is the file name",
+            path.display()
+        );
+        assert_ne!(cfg, Config::default(), "{}", path.display());
+        // A board profile is for a camera: a V4L2 source with an explicit mode.
+        let uri = &cfg.source.uri;
+        assert!(
+            uri.starts_with("v4l2:/dev/video"),
+            "{}: source {uri}",
+            path.display()
+        );
+        for key in ["width=", "height=", "fps=", "format="] {
+            assert!(
+                uri.contains(key),
+                "{}: source {uri} lacks {key}",
+                path.display()
+            );
+        }
+        // Caps the service manager enforces.
+        assert!(
+            cfg.board.memory_max_mib >= 32,
+            "{}: memory cap",
+            path.display()
+        );
+        assert!(
+            cfg.board.cpu_quota_percent > 0,
+            "{}: cpu cap",
+            path.display()
+        );
+        assert!(
+            cfg.report.sinks.iter().any(|s| s.starts_with("udp:")),
+            "{}: a UDP sink that install.sh --report can point at the workstation",
+            path.display()
+        );
+        // The binary's own check agrees (what board/install.sh runs).
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stature"))
+            .args(["config", "--check"])
+            .arg(path)
+            .output()
+            .expect("run stature config --check");
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            path.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn profiles_write_only_where_the_hardened_unit_allows() {
+    let unit = unit();
+    assert_eq!(unit_values(&unit, "ProtectSystem"), ["strict"]);
+    let state_dirs = unit_values(&unit, "StateDirectory");
+    assert_eq!(state_dirs, ["stature"]);
+    for path in profiles() {
+        let cfg = Config::load(&path).unwrap();
+        let state = &cfg.run.state;
+        assert!(
+            state.is_empty() || state.starts_with("/var/lib/stature/"),
+            "{}: state file {state} is outside StateDirectory (read-only under ProtectSystem=strict)",
+            path.display()
+        );
+        for sink in &cfg.report.sinks {
+            match SinkSpec::parse(sink).unwrap() {
+                SinkSpec::File(f) => assert!(
+                    f.starts_with("/var/lib/stature/"),
+                    "{}: file sink {f} is not writable by the service",
+                    path.display()
+                ),
+                SinkSpec::Serial { path: dev, .. } => assert!(
+                    unit_values(&unit, "SupplementaryGroups")
+                        .iter()
+                        .any(|g| g.split_whitespace().any(|g| g == "dialout")),
+                    "{}: serial sink {dev} needs group dialout",
+                    path.display()
+                ),
+                SinkSpec::Stdout | SinkSpec::Udp(_) | SinkSpec::Mqtt(_) => {}
+            }
+        }
+    }
+}
+
+#[test]
+fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
+    let unit = unit();
+    assert_eq!(unit_values(&unit, "User"), ["stature"]);
+    let groups = unit_values(&unit, "SupplementaryGroups").join(" ");
+    for g in ["video", "dialout"] {
+        assert!(
+            groups.split_whitespace().any(|x| x == g),
+            "SupplementaryGroups lacks {g}"
+        );
+    }
+    assert_eq!(unit_values(&unit, "Restart"), ["on-failure"]);
+    assert_eq!(unit_values(&unit, "NoNewPrivileges"), ["yes"]);
+    // Bad input (exit 2) is not retried; the exit codes are the binary's.
+    assert_eq!(
+        unit_values(&unit, "RestartPreventExitStatus"),
+        [stature::exit::BAD_INPUT.to_string()]
+    );
+    // ExecStart names the path board/install.sh writes the profile to.
+    let exec = unit_values(&unit, "ExecStart").join(" ");
+    assert!(exec.starts_with("/usr/local/bin/stature run "), "{exec}");
+    assert!(
+        exec.contains("--config /etc/stature/stature.toml"),
+        "{exec}"
+    );
+    let install = std::fs::read_to_string(board_dir().join("install.sh")).unwrap();
+    assert!(install.contains("/etc/stature/stature.toml"));
+    assert!(install.contains("/usr/local/bin/stature"));
+    // Devices a profile may name are allowed by the device policy.
+    let allowed = unit_values(&unit, "DeviceAllow").join(" ");
+    assert!(allowed.contains("char-video4linux"), "{allowed}");
+}
