@@ -776,8 +776,11 @@ fn broker_outage_mid_run_loses_no_final_height() {
         },
     );
     let (stopped, restarted) = (stopped.unwrap(), restarted.unwrap());
+    // `offline` is the camera's last message, after `bye`.
     assert!(
-        sub.wait(PATIENCE, |m| m.iter().any(|m| m.topic.ends_with("/bye"))),
+        sub.wait(PATIENCE, |m| m.iter().any(|m| m.topic
+            == format!("{prefix}/status")
+            && m.payload == "offline")),
         "bye never arrived: {:?}",
         sub.under(prefix).last()
     );
