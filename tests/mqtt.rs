@@ -776,8 +776,11 @@ fn broker_outage_mid_run_loses_no_final_height() {
         },
     );
     let (stopped, restarted) = (stopped.unwrap(), restarted.unwrap());
+    // `offline` is the camera's last message, after `bye`.
     assert!(
-        sub.wait(PATIENCE, |m| m.iter().any(|m| m.topic.ends_with("/bye"))),
+        sub.wait(PATIENCE, |m| m.iter().any(|m| m.topic
+            == format!("{prefix}/status")
+            && m.payload == "offline")),
         "bye never arrived: {:?}",
         sub.under(prefix).last()
     );
@@ -1157,4 +1160,69 @@ fn tls_with_a_private_ca() {
         Ok(_) => panic!("a missing CA file must be refused"),
     };
     assert!(e.to_string().contains("nope.pem"), "{e}");
+}
+
+#[test]
+fn the_real_pipeline_publishes_what_the_file_sink_writes() {
+    let Some(_) = tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) else {
+        return;
+    };
+    let dir = temp_dir("pipeline");
+    let broker = Broker::start(&dir, "allow_anonymous true\n");
+    let prefix = "stature/plaza";
+    let sub = Sub::start(broker.port, &[&format!("{prefix}/#")], &[]);
+    let file = dir.join("records.jsonl");
+    // The simulated scene: the full pipeline, with calibration records
+    // (and heights, once people are measured) from real stages.
+    let out = Command::new(common::stature_bin())
+        .args(["run", "--source", "sim:plaza?seed=1&frames=600", "--report"])
+        .arg(format!(
+            "mqtt:127.0.0.1:{}?topic={prefix}&qos=1&client_id=plaza",
+            broker.port
+        ))
+        .arg("--report")
+        .arg(format!("file:{}", file.display()))
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{log}");
+    assert!(
+        sub.wait(PATIENCE, |m| m.iter().any(|m| m.topic
+            == format!("{prefix}/status")
+            && m.payload == "offline")),
+        "{log}"
+    );
+    let written: Vec<String> = std::fs::read_to_string(&file)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    let published: Vec<Msg> = sub
+        .under(prefix)
+        .into_iter()
+        .filter(|m| m.topic != format!("{prefix}/status"))
+        .collect();
+    assert_eq!(published.len(), written.len());
+    for (m, line) in published.iter().zip(&written) {
+        assert_eq!(&m.payload, line);
+        assert_eq!(m.topic, topic_of(prefix, &decode(line)));
+    }
+    assert!(
+        written
+            .iter()
+            .any(|l| l.contains("\"type\":\"calibration\"")),
+        "the scene should calibrate within 600 frames"
+    );
+    // The final calibration is what a dashboard arriving now sees.
+    let last_cal = written
+        .iter()
+        .rfind(|l| l.contains("\"type\":\"calibration\""))
+        .unwrap();
+    let retained = retained_now(
+        broker.port,
+        &format!("{prefix}/calibration"),
+        Duration::from_millis(300),
+    );
+    assert_eq!(retained.len(), 1);
+    assert!(retained[0].retain && &retained[0].payload == last_cal);
 }
