@@ -9,7 +9,9 @@
 #      `stature run --source v4l2:/dev/video0?...`; mid-run it unbinds the
 #      vivid platform device through sysfs (what a USB unplug looks like) and
 #      binds it again: the source must reconnect;
-#   2. captures with the armv7 build (32-bit compat ioctls on a 64-bit kernel);
+#   2. captures with the armv7 build (32-bit compat ioctls on a 64-bit kernel),
+#      and runs the serial-sink test over a pseudo-terminal (qemu-user lacks
+#      the TCGETS2 ioctl it needs);
 #   3. deploys the aarch64 glibc build like a new user would (board/install.sh
 #      with the rpi4 profile, the systemd unit's ExecStart run as the
 #      dedicated user through su), its UDP reports read on the host with
@@ -99,6 +101,13 @@ armv7_bin=${STATURE_ARMV7_BIN:-$target_dir/armv7-unknown-linux-gnueabihf/release
 for b in "$gnu_bin" "$armv7_bin"; do
     [[ -x $b ]] || die "no binary at $b (run cross/build.sh)"
 done
+# The serial-sink test binary (cross/test.sh built it): qemu-user cannot run
+# it (no TCGETS2), a real aarch64 kernel can.
+sinks_test=$(ls -t "$target_dir"/aarch64-unknown-linux-gnu/release/deps/sinks-* 2>/dev/null | grep -v '\.d$' | head -1 || true)
+if [[ -z $sinks_test ]]; then
+    [[ "${CI:-}" == "true" ]] && die "no aarch64 sinks test binary: run cross/test.sh first"
+    echo "vm-test: no aarch64 sinks test binary (cross/test.sh builds it): serial test skipped"
+fi
 
 # --- 3. The unit as systemd reads it (the guest has no systemd): every
 # directive known and valid, ExecStart pointed at a binary that exists here.
@@ -143,6 +152,7 @@ for pair in aarch64-linux-gnu:ld-linux-aarch64.so.1 arm-linux-gnueabihf:ld-linux
     done
 done
 cp "$musl_bin" "$root/bin/stature-musl"
+[[ -n $sinks_test ]] && cp "$sinks_test" "$root/bin/sinks-test"
 cp "$armv7_bin" "$root/bin/stature-armv7"
 # Deployment payload, as a user would scp it to the board (README: the
 # aarch64-unknown-linux-gnu build for a Pi 4).
@@ -205,6 +215,15 @@ say "stature exit \$?"
     --source 'v4l2:/dev/video0?width=640&height=480&fps=25&format=YUYV' \\
     --frames 50 --report file:/dev/vport0p4 2>>/dev/vport0p2
 say "armv7 exit \$?"
+
+# Part 1c: the serial sink over a pseudo-terminal (tests/sinks.rs).
+if [ -x /bin/sinks-test ]; then
+    mkdir -p /dev/pts && mount -t devpts devpts /dev/pts
+    /bin/sinks-test serial_sink --test-threads=1 >>/dev/vport0p2 2>&1
+    say "serial test exit \$?"
+else
+    say "serial test skipped"
+fi
 
 # Part 2: deploy as the README says, on this "board".
 modprobe virtio_net
