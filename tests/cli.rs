@@ -81,16 +81,21 @@ fn y4m_file_streams_hello_status_bye_to_stdout_and_udp() {
     assert_eq!(first, recs[0], "UDP carries the same records");
 }
 
-#[test]
-fn stdin_source_reads_a_pipe() {
-    let clip = std::fs::read(write_clip("b.y4m", 12)).unwrap();
-    let mut child = Command::new(stature_bin())
+/// `stature run --source y4m:- -q` with every standard stream piped.
+fn run_from_stdin() -> std::process::Child {
+    Command::new(stature_bin())
         .args(["run", "--source", "y4m:-", "-q"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .unwrap();
+        .unwrap()
+}
+
+#[test]
+fn stdin_source_reads_a_pipe() {
+    let clip = std::fs::read(write_clip("b.y4m", 12)).unwrap();
+    let mut child = run_from_stdin();
     child.stdin.take().unwrap().write_all(&clip).unwrap();
     let out = child.wait_with_output().unwrap();
     assert!(
@@ -264,13 +269,7 @@ fn printed_defaults_check_clean_and_postcard_format_is_binary() {
 #[test]
 fn sigterm_stops_cleanly_with_bye() {
     // A pipe that stays open: the run waits for frames until the signal.
-    let mut child = Command::new(stature_bin())
-        .args(["run", "--source", "y4m:-", "-q"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = run_from_stdin();
     let mut stdin = child.stdin.take().unwrap();
     let clip = common::synthetic_y4m(
         Size {
