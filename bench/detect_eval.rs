@@ -93,17 +93,7 @@ fn main() {
         shadow += u64::from(st.shadow);
         truth.clear();
         if let Some(s) = &sim_src {
-            truth.extend(
-                s.truth()
-                    .iter()
-                    .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
-                    .map(|o| BBox {
-                        x0: o.bbox[0],
-                        y0: o.bbox[1],
-                        x1: o.bbox[2],
-                        y1: o.bbox[3],
-                    }),
-            );
+            detect_support::truth_boxes(s, &mut truth);
         } else {
             truth.extend(
                 boxes_of_frame(&gt, i as u32)

@@ -3,9 +3,9 @@
 
 mod detect_support;
 
-use detect_support::{agreement, FloatGmm, Score};
+use detect_support::{agreement, truth_boxes, FloatGmm, Score};
 use stature::detect::morphology::BitMask;
-use stature::detect::{BBox, DetectConfig, Detector, RegionSet};
+use stature::detect::{DetectConfig, Detector, RegionSet};
 use stature::frame::Frame;
 use stature::source::sim::people::Kind;
 use stature::source::sim::SimSource;
@@ -13,22 +13,6 @@ use stature::source::{FrameSource, Next};
 
 const FRAMES: u64 = 300;
 const WARM_UP: u64 = 50;
-
-/// Truth boxes of people and other objects seen enough to be detectable.
-fn truth_boxes(src: &SimSource, out: &mut Vec<BBox>) {
-    out.clear();
-    out.extend(
-        src.truth()
-            .iter()
-            .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
-            .map(|o| BBox {
-                x0: o.bbox[0],
-                y0: o.bbox[1],
-                x1: o.bbox[2],
-                y1: o.bbox[3],
-            }),
-    );
-}
 
 /// Runs the detector (and optionally the float reference) over a scene;
 /// returns the score and the mean pixel agreement with the float model.

@@ -5,6 +5,7 @@
 use stature::detect::morphology::BitMask;
 use stature::detect::{BBox, DetectConfig, Region};
 use stature::frame::Frame;
+use stature::source::sim::SimSource;
 
 /// One float mode.
 #[derive(Clone, Copy, Debug, Default)]
@@ -247,4 +248,20 @@ impl Score {
     pub fn mean_iou(&self) -> f64 {
         self.iou_sum / f64::from(self.isolated.max(1))
     }
+}
+
+/// Truth boxes of people and other objects seen enough to be detectable.
+pub fn truth_boxes(src: &SimSource, out: &mut Vec<BBox>) {
+    out.clear();
+    out.extend(
+        src.truth()
+            .iter()
+            .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
+            .map(|o| BBox {
+                x0: o.bbox[0],
+                y0: o.bbox[1],
+                x1: o.bbox[2],
+                y1: o.bbox[3],
+            }),
+    );
 }
