@@ -16,6 +16,10 @@ T=${CARGO_TARGET_DIR:-target}
 work=$T/cross-cache/bitexact
 mkdir -p "$work"
 frames=${BITEXACT_FRAMES:-150}
+# The plaza runs long enough for the calibration to settle and heights to be
+# reported: the whole float path (calibrate, measure) is compared, not just
+# detection and tracking.
+sim_frames=${BITEXACT_SIM_FRAMES:-1000}
 
 die() { echo "bitexact: FAIL: $*" >&2; exit 1; }
 
@@ -36,13 +40,18 @@ if [[ ${#bins[@]} -eq 0 ]]; then
 fi
 [[ ${#bins[@]} -ge 2 ]] || die "need at least two binaries, have: ${bins[*]}"
 
-run_one() { # BIN SOURCE -> normalised JSON Lines on stdout
-    local bin=$1 src=$2 prefix=()
+run_bin() { # BIN ARGS... (ARM binaries through qemu-user)
+    local bin=$1
+    shift
     case $(file -b "$bin") in
-        *aarch64*) prefix=(env QEMU_LD_PREFIX=/usr/aarch64-linux-gnu qemu-aarch64-static) ;;
-        *"ARM, EABI5"*) prefix=(env QEMU_LD_PREFIX=/usr/arm-linux-gnueabihf qemu-arm-static) ;;
+        *aarch64*) QEMU_LD_PREFIX=/usr/aarch64-linux-gnu qemu-aarch64-static "$bin" "$@" ;;
+        *"ARM, EABI5"*) QEMU_LD_PREFIX=/usr/arm-linux-gnueabihf qemu-arm-static "$bin" "$@" ;;
+        *) "$bin" "$@" ;;
     esac
-    "${prefix[@]}" "$bin" run --quiet --source "$src" --report stdout --format json |
+}
+
+run_one() { # BIN SOURCE -> normalised JSON Lines on stdout
+    run_bin "$1" run --quiet --source "$2" --report stdout --format json |
         sed -E '/"type":"status"/ s/"fps":[^,}]*/"fps":0/'
 }
 
@@ -56,7 +65,7 @@ inputs+=("y4m:$synth")
 # The simulated plaza: rendered in integer/fixed point by design, so the
 # frames themselves must be identical too (people walk: detection,
 # tracking and calibration all run).
-inputs+=("sim:plaza?seed=3&frames=$frames")
+inputs+=("sim:plaza?seed=3&frames=$sim_frames")
 pets=../shared/data/pets2009-s2l1/vtest.avi
 if [[ -f $pets ]]; then
     clip=$work/pets-${frames}.y4m
@@ -70,6 +79,28 @@ else
 fi
 
 fail=0
+# The renderer itself: `stature sim` must write the same clip and the same
+# ground truth bytes everywhere (it is integer/fixed point by design), so the
+# simulation tests' numbers carry over from the host to every target.
+for scene in plaza busy; do
+    ref="" refbin=""
+    for bin in "${bins[@]}"; do
+        out=$work/sim-$scene.$(echo "$bin" | tr / _)
+        run_bin "$bin" sim --scene "$scene" --seed 5 --frames 40 \
+            --out "$out.y4m" --truth "$out.json" 2>/dev/null || die "$bin sim --scene $scene failed"
+        sum=$(cat "$out.y4m" "$out.json" | sha256sum | cut -c1-16)
+        rm -f "$out.y4m"
+        if [[ -z $ref ]]; then
+            ref=$sum refbin=$bin
+            echo "bitexact: stature sim --scene $scene: reference $bin (clip+truth sha256 $sum)"
+        elif [[ $sum == "$ref" ]]; then
+            echo "bitexact: stature sim --scene $scene: $bin identical"
+        else
+            echo "bitexact: stature sim --scene $scene: $bin DIFFERS from $refbin ($sum vs $ref)"
+            fail=1
+        fi
+    done
+done
 for input in "${inputs[@]}"; do
     ref="" refbin=""
     name=$(basename "${input%%\?*}" .y4m)

@@ -55,8 +55,8 @@ impl Camera {
 
     /// World-to-camera rotation (camera axes: x right, y down, z forward).
     pub fn rotation(&self) -> Matrix3<f64> {
-        let (st, ct) = self.tilt.sin_cos();
-        let (sr, cr) = self.roll.sin_cos();
+        let (st, ct) = (libm::sin(self.tilt), libm::cos(self.tilt));
+        let (sr, cr) = (libm::sin(self.roll), libm::cos(self.roll));
         // Level camera looking along +y, pitched down by the tilt.
         let pitched = Matrix3::new(1.0, 0.0, 0.0, 0.0, -st, -ct, 0.0, ct, -st);
         let rolled = Matrix3::new(cr, sr, 0.0, -sr, cr, 0.0, 0.0, 0.0, 1.0);

@@ -197,7 +197,7 @@ pub fn fit_vvp(
     // lines `midpoint → v`, by coordinate descent in (direction, inverse
     // distance), which stays regular when `v` is at infinity.
     let cost = |phi: f64, w: f64| {
-        let v = Vector3::new(phi.sin(), phi.cos(), w);
+        let v = Vector3::new(libm::sin(phi), libm::cos(phi), w);
         let mut c = 0.0;
         for (o, &flag) in obs[..n].iter().zip(inlier.iter()) {
             if flag {
@@ -209,15 +209,15 @@ pub fn fit_vvp(
     };
     let rho = (v.x * v.x + v.y * v.y).sqrt();
     if rho > 1e-12 {
-        let (mut phi, mut w) = (v.x.atan2(v.y), v.z / rho);
+        let (mut phi, mut w) = (libm::atan2(v.x, v.y), v.z / rho);
         for round in 0..3 {
             let k = 1.0 / f64::from(1 + round);
             phi = golden(phi - 0.02 * k, phi + 0.02 * k, |x| cost(x, w));
             let span = 0.2 * w.abs().max(0.05) * k;
             w = golden(w - span, w + span, |x| cost(phi, x));
         }
-        let refined = Vector3::new(phi.sin(), phi.cos(), w).normalize();
-        if cost(phi, w) <= cost(v.x.atan2(v.y), v.z / rho) {
+        let refined = Vector3::new(libm::sin(phi), libm::cos(phi), w).normalize();
+        if cost(phi, w) <= cost(libm::atan2(v.x, v.y), v.z / rho) {
             v = if refined.z < 0.0 { -refined } else { refined };
         }
     }
@@ -468,12 +468,12 @@ impl ViewGeometry {
     }
     /// Tilt (downward pitch), radians: `tan θ = f / |v − p|`.
     pub fn tilt(&self) -> f64 {
-        self.focal().atan2(self.r())
+        libm::atan2(self.focal(), self.r())
     }
     /// Roll, radians, positive when the horizon rises to the right:
     /// `atan2(v_x, v_y)` relative to `p` (see `camera`'s sign note).
     pub fn roll(&self) -> f64 {
-        (self.v[0] - self.p[0]).atan2(self.v[1] - self.p[1])
+        libm::atan2(self.v[0] - self.p[0], self.v[1] - self.p[1])
     }
     /// Horizon `[a, b, c]`, unit normal, positive on the ground side.
     pub fn horizon(&self) -> [f64; 3] {

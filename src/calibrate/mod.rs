@@ -574,11 +574,11 @@ impl Calibrator {
         let prev_f = self.estimate.map(|e| e.geom.focal());
         let change = prev_f.map_or(1.0, |p| (geom.focal() / p - 1.0).abs());
         // Stability: smoothed agreement of successive refits.
-        self.stability = 0.7 * self.stability + 0.3 * (-change / 0.02).exp();
+        self.stability = 0.7 * self.stability + 0.3 * libm::exp(-change / 0.02);
         let spread = self.spread();
-        let c_lines = 1.0 - (-(vfit.inliers as f64) / 60.0).exp();
-        let c_pairs = 1.0 - (-(hinl as f64) / 40.0).exp();
-        let c_prec = (-focal_rel_sigma / 0.02).exp();
+        let c_lines = 1.0 - libm::exp(-(vfit.inliers as f64) / 60.0);
+        let c_pairs = 1.0 - libm::exp(-(hinl as f64) / 40.0);
+        let c_prec = libm::exp(-focal_rel_sigma / 0.02);
         let mut confidence = c_lines * c_pairs * c_prec * spread * self.stability;
         if degeneracy.is_some() {
             confidence *= 0.25;

@@ -57,7 +57,7 @@ impl Default for SynthScene {
 /// A random downward-looking camera of the range the product targets.
 pub fn random_camera(rng: &mut Rng, width: usize, height: usize) -> Camera {
     let hfov = (50.0 + 40.0 * rng.uniform()).to_radians();
-    let f = (width as f64 / 2.0) / (hfov / 2.0).tan();
+    let f = (width as f64 / 2.0) / libm::tan(hfov / 2.0);
     Camera::centred(
         f,
         12.0 + 28.0 * rng.uniform(),
@@ -92,13 +92,13 @@ pub fn walk(cam: &Camera, scene: &SynthScene, rng: &mut Rng) -> Vec<SynthObs> {
         let heading = core::f64::consts::TAU * rng.uniform();
         let speed = 1.0 + 0.6 * rng.uniform();
         let step = [
-            speed * heading.cos() / scene.fps,
-            speed * heading.sin() / scene.fps,
+            speed * libm::cos(heading) / scene.fps,
+            speed * libm::sin(heading) / scene.fps,
         ];
         let first = u64::from(id - 1) * (scene.fps as u64) * 2;
         let phase0 = rng.uniform() * 6.0;
         for k in 0..(scene.fps as u64 * 30) {
-            let bob = 0.02 * ((phase0 + k as f64 * 2.0 * 3.5 / scene.fps).sin().abs() - 1.0);
+            let bob = 0.02 * (libm::sin(phase0 + k as f64 * 2.0 * 3.5 / scene.fps).abs() - 1.0);
             let (Some(foot), Some(head)) = (
                 cam.project([pos[0], pos[1], 0.0]),
                 cam.project([pos[0], pos[1], height + bob]),

@@ -43,7 +43,7 @@ fn orientation_table() -> &'static [u16; TABLE_LEN] {
         let mut t = [0u16; TABLE_LEN];
         for dy in 0..=32i32 {
             for dx in -32..=32i32 {
-                let theta = f64::from(dy).atan2(f64::from(dx)).to_degrees();
+                let theta = libm::atan2(f64::from(dy), f64::from(dx)).to_degrees();
                 // Bin k is centred on 20k + 10 degrees.
                 let p = theta / 20.0 - 0.5;
                 let mut lo = p.floor();

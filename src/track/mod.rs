@@ -425,7 +425,7 @@ fn pf_step(
         p.scale = (p.scale * (1.0 + 0.02 * rng.normal() as f32)).clamp(0.7, 1.4);
         table.histogram(frame, p.cx, p.cy, sw * p.scale, sh * p.scale, h);
         let bc = bhattacharyya(h, &t.hist);
-        p.w = (-20.0 * (1.0 - bc)).exp();
+        p.w = libm::expf(-20.0 * (1.0 - bc));
         total += p.w;
     }
     if total <= 0.0 || !total.is_finite() {
