@@ -17,7 +17,7 @@
 //! * A standing person: the background mode of a covered pixel stops being
 //!   "the background" once its weight, decaying at `α · foreground_rate`
 //!   per frame, falls below `background_ratio` of the total. Measured
-//!   (`tests/detect_synthetic.rs`, α = 1/301): plain Zivkovic
+//!   (`tests/suite/detect_synthetic.rs`, α = 1/301): plain Zivkovic
 //!   (`foreground_rate = 1`) absorbs a person who stops after 34 frames,
 //!   the default `foreground_rate = 0.25` after 155 frames (15 s at 10 fps;
 //!   at the steady α = 1/500 about 5/3 of both). The price: a ghost left by

@@ -21,7 +21,7 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-mod common;
+use crate::common;
 
 /// Generous bound on waiting for something that should happen (the tests
 /// never assert how long anything took; this only keeps a failure from hanging).

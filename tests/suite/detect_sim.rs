@@ -1,9 +1,7 @@
 //! Detection on the simulated scenes (exact truth boxes): fixed point vs
 //! float, isolated people found, and shadows not growing the boxes.
 
-mod detect_support;
-
-use detect_support::{agreement, truth_boxes, FloatGmm, Score};
+use crate::detect_support::{agreement, truth_boxes, FloatGmm, Score};
 use stature::detect::morphology::BitMask;
 use stature::detect::{DetectConfig, Detector, RegionSet};
 use stature::frame::Frame;

@@ -1,12 +1,9 @@
 //! The classifier allocates nothing per region once built.
 
-use stature::alloc_count::{allocations, CountingAlloc};
+use stature::alloc_count::thread_allocations;
 use stature::classify::{Classifier, ClassifyConfig};
 use stature::detect::{BBox, Region};
 use stature::frame::Plane;
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
 
 #[test]
 fn no_allocation_per_region() {
@@ -31,12 +28,16 @@ fn no_allocation_per_region() {
         .collect();
     // First call may initialise the shared orientation table.
     cls.classify(plane, &regions[0]);
-    let before = allocations();
+    let before = thread_allocations();
     let mut scores = 0.0;
     for r in &regions {
         scores += cls.classify(plane, r).score;
     }
-    assert_eq!(allocations() - before, 0, "allocations while classifying");
+    assert_eq!(
+        thread_allocations() - before,
+        0,
+        "allocations while classifying"
+    );
     assert!(scores.is_finite());
     assert_eq!(cls.counters.classified, 41);
 }

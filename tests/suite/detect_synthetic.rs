@@ -1,12 +1,9 @@
 //! Detection on generated scenes: global gain steps, slow drift, a person
 //! who stops, zero allocations per frame, and a bit-exactness digest.
 
-use stature::alloc_count::{thread_allocations, CountingAlloc};
+use stature::alloc_count::thread_allocations;
 use stature::detect::{BBox, DetectConfig, Detector, RegionSet};
 use stature::frame::{Frame, Size};
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
 
 const SIZE: Size = Size {
     width: 320,

@@ -5,8 +5,8 @@ use stature::frame::Size;
 use std::io::Write;
 use std::process::{Command, Stdio};
 
-mod common;
-use common::stature_bin;
+use crate::common;
+use crate::common::stature_bin;
 
 fn tmp(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("stature-cli-{}", std::process::id()));

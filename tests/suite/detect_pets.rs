@@ -1,9 +1,7 @@
 //! Detection on real video (PETS 2009 S2.L1 View_001): the fixed-point
 //! model against its float reference, and people found against `gt.csv`.
 
-mod detect_support;
-
-use detect_support::{agreement, FloatGmm, Score};
+use crate::detect_support::{agreement, FloatGmm, Score};
 use stature::dataset::{boxes_of_frame, load_pets_gt, pets_video, require_shared_data};
 use stature::detect::morphology::BitMask;
 use stature::detect::{BBox, DetectConfig, Detector, RegionSet};

@@ -4,7 +4,7 @@
 //! `tests/golden/classify_features.txt`, so any silent change of the
 //! feature arithmetic or layout fails here (and must come with a
 //! `FEATURE_VERSION` bump and retrained weights). After an intended change,
-//! regenerate with `STATURE_BLESS=1 cargo test --release --test classify_golden`.
+//! regenerate with `STATURE_BLESS=1 cargo test --release --test suite classify_golden::`.
 
 use stature::classify::layout::{fnv1a64, Layout};
 use stature::classify::svm::{Model, WeightsError};
