@@ -252,6 +252,20 @@ fn state_file_round_trip_and_corrupt_file() {
     // A different frame size is refused.
     let mut other = Calibrator::new(&cfg, 800, 600);
     assert_eq!(other.resume(&saved), 0);
+    // A crash part-way through a write leaves a torn temporary file behind
+    // (tests/suite/faults.rs crashes the real process mid-write): readers
+    // never look at it, and the next write replaces it.
+    let complete = std::fs::read(&path).unwrap();
+    let tmp = path.with_extension("json.tmp");
+    for cut in [0, 1, complete.len() / 2, complete.len() - 1] {
+        std::fs::write(&tmp, &complete[..cut]).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), complete, "cut at {cut}");
+        assert!(state::StateFile::new(&path, 0).load().unwrap().is_some());
+    }
+    c.observe(obs.last().unwrap().frame + 1, 999, obs[0].hf);
+    c.finish(obs.last().unwrap().frame + 1).unwrap();
+    assert!(!tmp.exists(), "the leftover was replaced and renamed");
+    assert_ne!(std::fs::read(&path).unwrap(), complete, "a new version");
     // Corrupt content is an error, not a panic.
     std::fs::write(&path, b"{\"version\":1,\"width\":640,").unwrap();
     assert!(matches!(

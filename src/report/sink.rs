@@ -92,7 +92,7 @@ pub enum Sink {
     /// Standard output.
     Stdout(io::Stdout),
     /// An appended file.
-    File(io::BufWriter<std::fs::File>),
+    File(FileSink),
     /// A connected-less UDP socket and its destination.
     Udp(UdpSocket, SocketAddr),
     /// A serial port.
@@ -100,6 +100,38 @@ pub enum Sink {
     /// An MQTT broker, served by its own connection thread.
     #[cfg(feature = "mqtt")]
     Mqtt(Box<super::mqtt::link::MqttSink>),
+}
+
+/// A report file, written one record per `write` call.
+///
+/// Unbuffered on purpose: records come a few per second, and a buffered
+/// writer would report a full disk (`ENOSPC`) only at a later flush, for
+/// records it had already accepted, so losses could not be counted per
+/// record. Here every record that is not entirely in the file is an error
+/// the I/O thread counts.
+pub struct FileSink {
+    file: std::fs::File,
+    /// The last write failed part-way: the file may end in a fragment.
+    torn: bool,
+}
+
+impl FileSink {
+    fn write(&mut self, bytes: &[u8]) -> io::Result<()> {
+        write_after_fragment(&mut self.file, &mut self.torn, bytes)
+    }
+}
+
+/// Writes one encoded record; `torn` says the previous write failed
+/// part-way and may have left a fragment at the end of the output.
+fn write_after_fragment<W: Write>(w: &mut W, torn: &mut bool, bytes: &[u8]) -> io::Result<()> {
+    if *torn {
+        // Close the fragment with the record separator (`\n` for JSON
+        // Lines, `0` for COBS frames: each encoding ends in its own), so a
+        // reader loses that one record and not the next as well.
+        w.write_all(&bytes[bytes.len().saturating_sub(1)..])?;
+        *torn = false;
+    }
+    w.write_all(bytes).inspect_err(|_| *torn = true)
 }
 
 /// How long a serial write may block before the record is dropped.
@@ -119,14 +151,14 @@ impl Sink {
     pub fn open_with(spec: &SinkSpec, mqtt: &MqttConfig) -> io::Result<Sink> {
         Ok(match spec {
             SinkSpec::Stdout => Sink::Stdout(io::stdout()),
-            SinkSpec::File(p) => Sink::File(io::BufWriter::with_capacity(
-                1 << 14,
-                std::fs::OpenOptions::new()
+            SinkSpec::File(p) => Sink::File(FileSink {
+                file: std::fs::OpenOptions::new()
                     .create(true)
                     .append(true)
                     .open(p)
                     .map_err(|e| io::Error::new(e.kind(), format!("report file `{p}`: {e}")))?,
-            )),
+                torn: false,
+            }),
             SinkSpec::Udp(addr) => {
                 let dest = addr
                     .to_socket_addrs()
@@ -227,7 +259,7 @@ impl Sink {
                 l.write_all(bytes)?;
                 l.flush()
             }
-            Sink::File(f) => f.write_all(bytes),
+            Sink::File(f) => f.write(bytes),
             Sink::Udp(sock, dest) => sock.send_to(bytes, *dest).map(|_| ()),
             Sink::Serial(port) => port.write_all(bytes),
             #[cfg(feature = "mqtt")]
@@ -241,7 +273,6 @@ impl Sink {
     /// Flushes buffered output (called when the queue runs empty).
     pub fn flush(&mut self) -> io::Result<()> {
         match self {
-            Sink::File(f) => f.flush(),
             Sink::Serial(p) => p.flush(),
             _ => Ok(()),
         }
@@ -262,6 +293,54 @@ impl Sink {
 
 #[cfg(test)]
 mod tests {
+
+    /// Accepts `room` bytes, then fails like a full disk until given more.
+    struct FullDisk {
+        data: Vec<u8>,
+        room: usize,
+    }
+
+    impl Write for FullDisk {
+        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+            let n = b.len().min(self.room);
+            if n == 0 {
+                return Err(io::Error::from_raw_os_error(28));
+            }
+            self.data.extend_from_slice(&b[..n]);
+            self.room -= n;
+            Ok(n)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_record_cut_by_a_full_disk_costs_only_itself() {
+        let mut disk = FullDisk {
+            data: Vec::new(),
+            room: 20,
+        };
+        let mut torn = false;
+        let rec = |n: u32| format!("{{\"type\":\"bye\",\"frame\":{n}}}\n");
+        assert!(write_after_fragment(&mut disk, &mut torn, rec(1).as_bytes()).is_err());
+        assert!(torn);
+        assert!(write_after_fragment(&mut disk, &mut torn, rec(2).as_bytes()).is_err());
+        disk.room = 1000; // space freed
+        write_after_fragment(&mut disk, &mut torn, rec(3).as_bytes()).unwrap();
+        write_after_fragment(&mut disk, &mut torn, rec(4).as_bytes()).unwrap();
+        let text = String::from_utf8(disk.data).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        // The fragment of record 1 is a line of its own; 3 and 4 are whole.
+        assert_eq!(
+            lines,
+            [
+                &rec(1)[..20],
+                &rec(3)[..rec(3).len() - 1],
+                &rec(4)[..rec(4).len() - 1]
+            ]
+        );
+    }
     use super::*;
 
     #[test]

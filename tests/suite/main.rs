@@ -31,6 +31,7 @@ mod core_accuracy;
 mod detect_pets;
 mod detect_sim;
 mod detect_synthetic;
+mod faults;
 mod mqtt;
 mod sim_alloc;
 mod sim_geometry;
