@@ -37,10 +37,36 @@ pub struct Pipeline {
     pub frames: u64,
 }
 
+/// How full the loop's fixed-size tables are (soak tests and benchmarks).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Occupancy {
+    /// Live tracks.
+    pub tracks: usize,
+    /// Track table capacity.
+    pub track_capacity: usize,
+    /// Track births refused because the table was full, since start.
+    pub track_overflow: u64,
+    /// Calibration anchors stored.
+    pub anchors: usize,
+    /// Anchor store capacity.
+    pub anchor_capacity: usize,
+}
+
 /// Final heights a [`Pipeline`] keeps for its summary.
 pub const FINAL_HEIGHTS_KEPT: usize = 1024;
 
 impl Pipeline {
+    /// How full the track table and the anchor store are now.
+    pub fn occupancy(&self) -> Occupancy {
+        Occupancy {
+            tracks: self.tracker.live() as usize,
+            track_capacity: self.tracker.capacity(),
+            track_overflow: self.tracker.overflow,
+            anchors: self.calib.anchor_count(),
+            anchor_capacity: self.calib.anchor_capacity(),
+        }
+    }
+
     /// Allocates everything the loop will ever need for `info`'s frames.
     pub fn new(cfg: &Config, info: &SourceInfo) -> Self {
         let size = info.size;

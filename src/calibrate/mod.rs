@@ -315,6 +315,11 @@ impl Calibrator {
         self.slots.iter().filter(|s| s.used).map(|s| s.len).sum()
     }
 
+    /// Most anchors the store holds (`tracks × anchors_per_track`).
+    pub fn anchor_capacity(&self) -> usize {
+        self.cfg.tracks * self.cfg.anchors_per_track
+    }
+
     /// One observation of track `id` in frame `frame` (already checked by
     /// the tracker: single person, not at the border, not cut).
     pub fn observe(&mut self, frame: u64, id: u32, o: HeadFoot) {

@@ -205,6 +205,11 @@ impl Tracker {
         &mut self.tracks
     }
 
+    /// Most tracks the table holds (config `track.capacity`, at most [`MAX_TRACKS`]).
+    pub fn capacity(&self) -> usize {
+        self.cfg.capacity.min(MAX_TRACKS)
+    }
+
     /// Live (not ended) tracks.
     pub fn live(&self) -> u32 {
         self.tracks.iter().filter(|t| !t.ended).count() as u32
