@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every cargo-fuzz target for a bounded time from the committed seed
-# corpus. Crashes are saved under fuzz/artifacts/ and fail the run; each one
-# found becomes a regression test (tests/fuzz_regressions.rs).
+# corpus. Crashes are saved under fuzz/artifacts/ and fail the run; once
+# fixed, copy the input to fuzz/regressions/<target>/: tests/suite/fuzz_corpus.rs
+# replays it (and the seed corpus) through the same check on every test run.
 #   fuzz/run.sh [SECONDS_PER_TARGET]   (default 60)
 set -euo pipefail
 cd "$(dirname "$0")"

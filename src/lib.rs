@@ -34,6 +34,7 @@ pub mod camera;
 pub mod config;
 pub mod dataset;
 pub mod frame;
+pub mod fuzz_entry;
 pub mod logger;
 pub mod rng;
 

@@ -32,6 +32,7 @@ mod detect_pets;
 mod detect_sim;
 mod detect_synthetic;
 mod faults;
+mod fuzz_corpus;
 mod geometry_props;
 mod mqtt;
 mod sim_alloc;
