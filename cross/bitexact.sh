@@ -78,18 +78,46 @@ else
     echo "bitexact: ../shared/data missing: synthetic input only"
 fi
 
-fail=0
+# Every run first, in parallel (each is single-threaded; ARM ones are
+# emulated and slow), then the comparisons.
+jobs_max=${BITEXACT_JOBS:-$(nproc)}
+job() { # OUT CMD... -> stdout in OUT, exit status in OUT.status
+    local out=$1
+    shift
+    ( set +e; "$@" >"$out" 2>"$out.err"; echo $? >"$out.status" ) &
+    while (( $(jobs -rp | wc -l) >= jobs_max )); do wait -n || true; done
+}
+out_of() { echo "$work/$1.$(echo "$2" | tr / _)"; } # NAME BIN
+
 # The renderer itself: `stature sim` must write the same clip and the same
 # ground truth bytes everywhere (it is integer/fixed point by design), so the
 # simulation tests' numbers carry over from the host to every target.
-for scene in plaza busy; do
+render() { # BIN SCENE OUT -> digest of clip and truth
+    run_bin "$1" sim --scene "$2" --seed 5 --frames 40 --out "$3.y4m" --truth "$3.json" &&
+        cat "$3.y4m" "$3.json" | sha256sum | cut -c1-16 && rm -f "$3.y4m"
+}
+scenes=(plaza busy)
+for scene in "${scenes[@]}"; do
+    for bin in "${bins[@]}"; do
+        o=$(out_of "sim-$scene" "$bin")
+        job "$o.sum" render "$bin" "$scene" "$o"
+    done
+done
+name_of() { local n; n=$(basename "${1%%\?*}" .y4m); echo "${n//:/_}"; }
+for input in "${inputs[@]}"; do
+    for bin in "${bins[@]}"; do
+        job "$(out_of "$(name_of "$input")" "$bin").jsonl" run_one "$bin" "$input"
+    done
+done
+wait
+
+fail=0
+for scene in "${scenes[@]}"; do
     ref="" refbin=""
     for bin in "${bins[@]}"; do
-        out=$work/sim-$scene.$(echo "$bin" | tr / _)
-        run_bin "$bin" sim --scene "$scene" --seed 5 --frames 40 \
-            --out "$out.y4m" --truth "$out.json" 2>/dev/null || die "$bin sim --scene $scene failed"
-        sum=$(cat "$out.y4m" "$out.json" | sha256sum | cut -c1-16)
-        rm -f "$out.y4m"
+        o=$(out_of "sim-$scene" "$bin").sum
+        [[ $(cat "$o.status") == 0 ]] || die "$bin sim --scene $scene failed: $(tail -3 "$o.err")"
+        sum=$(cat "$o")
         if [[ -z $ref ]]; then
             ref=$sum refbin=$bin
             echo "bitexact: stature sim --scene $scene: reference $bin (clip+truth sha256 $sum)"
@@ -103,10 +131,9 @@ for scene in plaza busy; do
 done
 for input in "${inputs[@]}"; do
     ref="" refbin=""
-    name=$(basename "${input%%\?*}" .y4m)
     for bin in "${bins[@]}"; do
-        out=$work/${name//:/_}.$(echo "$bin" | tr / _).jsonl
-        run_one "$bin" "$input" >"$out" || die "$bin failed on $input"
+        out=$(out_of "$(name_of "$input")" "$bin").jsonl
+        [[ $(cat "$out.status") == 0 ]] || die "$bin failed on $input: $(tail -3 "$out.err")"
         [[ -s $out ]] || die "$bin wrote no records for $input"
         if [[ -z $ref ]]; then
             ref=$out refbin=$bin
