@@ -65,7 +65,8 @@ pub struct Header {
 impl Header {
     /// Parses the header line (without its newline).
     pub fn parse(line: &[u8]) -> Result<Header, String> {
-        let text = std::str::from_utf8(line).map_err(|_| "header is not ASCII".to_string())?;
+        let text =
+            std::str::from_utf8(line).map_err(|_| "header is not text (UTF-8)".to_string())?;
         let mut parts = text.split(' ').filter(|p| !p.is_empty());
         if parts.next() != Some("YUV4MPEG2") {
             return Err("missing YUV4MPEG2 signature".into());
@@ -73,7 +74,8 @@ impl Header {
         let (mut w, mut h, mut fps, mut chroma, mut interlace) =
             (None, None, (0, 0), Chroma::C420, None);
         for tag in parts {
-            let (key, val) = tag.split_at(1);
+            // The key is one character; not always one byte (`X` tags may carry UTF-8).
+            let (key, val) = tag.split_at(tag.chars().next().map_or(0, char::len_utf8));
             match key {
                 "W" => w = Some(parse_dim(val, "width")?),
                 "H" => h = Some(parse_dim(val, "height")?),
