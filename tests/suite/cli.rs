@@ -266,8 +266,8 @@ fn printed_defaults_check_clean_and_postcard_format_is_binary() {
     assert!(frames >= 3, "hello, status, bye: {frames}");
 }
 
-#[test]
-fn sigterm_stops_cleanly_with_bye() {
+/// One run stopped by `signal` (a `kill` option such as `-TERM`).
+fn signal_stops_cleanly_with_bye(signal: &str) {
     // A pipe that stays open: the run waits for frames until the signal.
     let mut child = run_from_stdin();
     let mut stdin = child.stdin.take().unwrap();
@@ -283,7 +283,7 @@ fn sigterm_stops_cleanly_with_bye() {
     std::thread::sleep(std::time::Duration::from_millis(500));
     let pid = child.id().to_string();
     assert!(Command::new("kill")
-        .args(["-TERM", &pid])
+        .args([signal, &pid])
         .status()
         .unwrap()
         .success());
@@ -305,11 +305,11 @@ fn sigterm_stops_cleanly_with_bye() {
         sent += 1;
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
-    assert!(sent < 2000, "the process ignored SIGTERM");
+    assert!(sent < 2000, "the process ignored {signal}");
     let out = child.wait_with_output().unwrap();
     assert!(
         out.status.success(),
-        "{}",
+        "{signal}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
     let recs = records(&out.stdout);
@@ -317,4 +317,14 @@ fn sigterm_stops_cleanly_with_bye() {
     // The pipe was never closed, so only the signal can have ended the run.
     assert!(recs.last().unwrap()["frames"].as_u64().unwrap() <= sent);
     drop(stdin);
+}
+
+#[test]
+fn sigterm_stops_cleanly_with_bye() {
+    signal_stops_cleanly_with_bye("-TERM");
+}
+
+#[test]
+fn sigint_stops_cleanly_with_bye() {
+    signal_stops_cleanly_with_bye("-INT");
 }
