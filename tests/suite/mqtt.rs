@@ -37,6 +37,15 @@ fn tool(name: &str) -> Option<PathBuf> {
 
 /// The broker and client programs, or `None` (skip) when not installed
 /// locally; panics under CI.
+/// A broker that lets anyone in, in a fresh directory named after the test;
+/// `None` (the test is skipped, or fails under CI) without the Mosquitto tools.
+fn anonymous_broker(name: &str) -> Option<(PathBuf, Broker)> {
+    tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"])?;
+    let dir = temp_dir(name);
+    let broker = Broker::start(&dir, "allow_anonymous true\n");
+    Some((dir, broker))
+}
+
 fn tools(names: &[&str]) -> Option<Vec<PathBuf>> {
     let found: Vec<Option<PathBuf>> = names.iter().map(|n| tool(n)).collect();
     if found.iter().all(Option::is_some) {
@@ -442,11 +451,9 @@ fn drive(
 
 #[test]
 fn every_record_arrives_on_its_topic_as_schema_v1_json() {
-    let Some(_) = tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) else {
+    let Some((_, broker)) = anonymous_broker("every") else {
         return;
     };
-    let dir = temp_dir("every");
-    let broker = Broker::start(&dir, "allow_anonymous true\n");
     // JSON and postcard runs: MQTT payloads are JSON either way.
     for (n, format) in [Format::Json, Format::Postcard].into_iter().enumerate() {
         let prefix = format!("stature/every{n}");
@@ -517,11 +524,9 @@ fn every_record_arrives_on_its_topic_as_schema_v1_json() {
 
 #[test]
 fn late_subscribers_see_retained_state_and_home_assistant_discovery() {
-    let Some(_) = tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) else {
+    let Some((_, broker)) = anonymous_broker("retained") else {
         return;
     };
-    let dir = temp_dir("retained");
-    let broker = Broker::start(&dir, "allow_anonymous true\n");
     let prefix = "stature/lobby";
     let records = vec![
         hello(),
@@ -646,11 +651,9 @@ fn late_subscribers_see_retained_state_and_home_assistant_discovery() {
 
 #[test]
 fn a_killed_camera_is_marked_offline_by_its_last_will() {
-    let Some(_) = tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) else {
+    let Some((_, broker)) = anonymous_broker("will") else {
         return;
     };
-    let dir = temp_dir("will");
-    let broker = Broker::start(&dir, "allow_anonymous true\n");
     let prefix = "stature/gate";
     let sub = Sub::start(broker.port, &[&format!("{prefix}/#")], &[]);
     // A live camera: frames arrive on stdin as they are captured; stdin stays open.
@@ -1164,11 +1167,9 @@ fn tls_with_a_private_ca() {
 
 #[test]
 fn the_real_pipeline_publishes_what_the_file_sink_writes() {
-    let Some(_) = tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) else {
+    let Some((dir, broker)) = anonymous_broker("pipeline") else {
         return;
     };
-    let dir = temp_dir("pipeline");
-    let broker = Broker::start(&dir, "allow_anonymous true\n");
     let prefix = "stature/plaza";
     let sub = Sub::start(broker.port, &[&format!("{prefix}/#")], &[]);
     let file = dir.join("records.jsonl");
