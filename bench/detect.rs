@@ -60,8 +60,8 @@ fn label(det: &mut Detector, out: &mut RegionSet) {
     det.label(out);
 }
 
-/// Nearest-neighbour resampling of the luma plane (chroma is not used by
-/// the stage; it is filled with grey).
+/// Nearest-neighbour resampling of all three planes (the chroma term of
+/// the detector reads U and V, so they carry the clip's real colours).
 fn resample(src: &Frame, size: Size) -> Frame {
     let s = src.size();
     let mut f = Frame::new(size);
@@ -72,8 +72,15 @@ fn resample(src: &Frame, size: Size) -> Frame {
             f.y[y * size.width + x] = src.y[sy * s.width + sx];
         }
     }
-    f.u.fill(128);
-    f.v.fill(128);
+    let (sc, dc) = (s.chroma(), size.chroma());
+    for y in 0..dc.height {
+        let sy = y * sc.height / dc.height;
+        for x in 0..dc.width {
+            let sx = x * sc.width / dc.width;
+            f.u[y * dc.width + x] = src.u[sy * sc.width + sx];
+            f.v[y * dc.width + x] = src.v[sy * sc.width + sx];
+        }
+    }
     f
 }
 
