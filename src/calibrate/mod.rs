@@ -226,6 +226,16 @@ impl Estimate {
     }
 }
 
+/// Consecutive observations of a track averaged into each anchor.
+///
+/// One frame's head and foot come from region extremes and are noisy by a
+/// few pixels; on an 80–100 px person that turns the head–foot line by
+/// about 5°, as much as the true verticals fan out across the image, and a
+/// vanishing-point fit on such lines comes out too far away (attenuation
+/// bias: tilt too low; bench/RESULTS.md, "End to end"). Consecutive frames
+/// see almost the same line, so their mean has √k less noise.
+pub const ANCHOR_SMOOTHING: usize = 8;
+
 /// Per-track slot of the anchor store.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Slot {
@@ -235,6 +245,30 @@ struct Slot {
     last_frame: u64,
     /// Order of first appearance (for the reference-person mode).
     seq: u64,
+    /// The track's latest observations (ring), averaged into its anchors.
+    recent: [HeadFoot; ANCHOR_SMOOTHING],
+    /// Observations in `recent` (saturates at its length).
+    recent_len: usize,
+    /// Next write position in `recent`.
+    recent_pos: usize,
+}
+
+impl Slot {
+    /// Adds an observation and returns the mean of the latest ones.
+    fn smooth(&mut self, o: HeadFoot) -> HeadFoot {
+        self.recent[self.recent_pos] = o;
+        self.recent_pos = (self.recent_pos + 1) % ANCHOR_SMOOTHING;
+        self.recent_len = (self.recent_len + 1).min(ANCHOR_SMOOTHING);
+        let n = self.recent_len as f64;
+        let mut m = HeadFoot::default();
+        for r in &self.recent[..self.recent_len] {
+            for i in 0..2 {
+                m.head[i] += r.head[i] / n;
+                m.foot[i] += r.foot[i] / n;
+            }
+        }
+        m
+    }
 }
 
 /// The incremental self-calibration stage. Everything it needs is allocated
@@ -347,10 +381,15 @@ impl Calibrator {
                     len: 0,
                     last_frame: frame,
                     seq: self.seq,
+                    ..Slot::default()
                 };
                 s
             }
         };
+        let o = self.slots[slot].smooth(o);
+        if self.slots[slot].recent_len < ANCHOR_SMOOTHING {
+            return; // not enough frames of this track yet
+        }
         let base = slot * k;
         let len = self.slots[slot].len;
         if len > 0 {

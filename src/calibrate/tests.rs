@@ -262,8 +262,12 @@ fn state_file_round_trip_and_corrupt_file() {
         assert_eq!(std::fs::read(&path).unwrap(), complete, "cut at {cut}");
         assert!(state::StateFile::new(&path, 0).load().unwrap().is_some());
     }
-    c.observe(obs.last().unwrap().frame + 1, 999, obs[0].hf);
-    c.finish(obs.last().unwrap().frame + 1).unwrap();
+    // A new track, seen for long enough to give an anchor.
+    let next = obs.last().unwrap().frame + 1;
+    for f in 0..super::ANCHOR_SMOOTHING as u64 {
+        c.observe(next + f, 999, obs[0].hf);
+    }
+    c.finish(next + super::ANCHOR_SMOOTHING as u64).unwrap();
     assert!(!tmp.exists(), "the leftover was replaced and renamed");
     assert_ne!(std::fs::read(&path).unwrap(), complete, "a new version");
     // Corrupt content is an error, not a panic.
