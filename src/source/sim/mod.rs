@@ -278,15 +278,7 @@ impl SimSource {
             .iter()
             .enumerate()
             .map(|(i, a)| {
-                let mut m = CastMember {
-                    id: a.id,
-                    kind: a.kind,
-                    height_m: a.height,
-                    group: a.group,
-                    frames_in_view: 0,
-                    first_frame: 0,
-                    last_frame: 0,
-                };
+                let mut m = member(a);
                 // Only the frames while the actor is on its path.
                 let fps = self.spec.fps as f64;
                 let (t0, t1) = a.span();
@@ -334,15 +326,20 @@ impl SimSource {
                 best = Some((d, a));
             }
         }
-        best.map(|(_, a)| CastMember {
-            id: a.id,
-            kind: a.kind,
-            height_m: a.height,
-            group: a.group,
-            frames_in_view: 0,
-            first_frame: 0,
-            last_frame: 0,
-        })
+        best.map(|(_, a)| member(a))
+    }
+}
+
+/// The cast entry of an actor, with no frames in view counted yet.
+fn member(a: &Actor) -> CastMember {
+    CastMember {
+        id: a.id,
+        kind: a.kind,
+        height_m: a.height,
+        group: a.group,
+        frames_in_view: 0,
+        first_frame: 0,
+        last_frame: 0,
     }
 }
 
