@@ -198,6 +198,16 @@ impl Layout {
     pub fn canonical_bytes(&self) -> Vec<u8> {
         let mut b = Vec::with_capacity(32 + (self.hog_blocks.len() + self.lbp_cells.len()) / 8);
         b.extend_from_slice(&FEATURE_VERSION.to_le_bytes());
+        self.extend_window_fields(&mut b);
+        b.extend_from_slice(&pack_bits(&self.hog_blocks));
+        b.extend_from_slice(&pack_bits(&self.lbp_cells));
+        b
+    }
+
+    /// Window size, margin, cell sizes, bin counts and LBP threshold, little
+    /// endian (11 bytes): part of the canonical bytes and of the weight
+    /// blob's header.
+    pub fn extend_window_fields(&self, b: &mut Vec<u8>) {
         b.extend_from_slice(&self.win_w.to_le_bytes());
         b.extend_from_slice(&self.win_h.to_le_bytes());
         b.extend_from_slice(&self.margin_q8.to_le_bytes());
@@ -208,9 +218,6 @@ impl Layout {
             LBP_BINS as u8,
             self.lbp_threshold,
         ]);
-        b.extend_from_slice(&pack_bits(&self.hog_blocks));
-        b.extend_from_slice(&pack_bits(&self.lbp_cells));
-        b
     }
 
     /// FNV-1a (64-bit) of [`Layout::canonical_bytes`].

@@ -212,17 +212,8 @@ impl Model {
         b.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
         b.extend_from_slice(&0u16.to_le_bytes());
         b.extend_from_slice(&0u32.to_le_bytes()); // length, patched below
-        b.extend_from_slice(&l.win_w.to_le_bytes());
-        b.extend_from_slice(&l.win_h.to_le_bytes());
-        b.extend_from_slice(&l.margin_q8.to_le_bytes());
-        b.extend_from_slice(&[
-            l.hog_cell,
-            HOG_BINS as u8,
-            l.lbp_cell,
-            LBP_BINS as u8,
-            l.lbp_threshold,
-            WEIGHT_I8,
-        ]);
+        l.extend_window_fields(&mut b);
+        b.push(WEIGHT_I8);
         b.extend_from_slice(&FEATURE_VERSION.to_le_bytes());
         b.extend_from_slice(&l.hash().to_le_bytes());
         b.extend_from_slice(&(self.weights.len() as u32).to_le_bytes());
@@ -365,6 +356,14 @@ mod tests {
         let m = model();
         let b = m.to_bytes();
         assert_eq!(Model::from_bytes(&b).unwrap(), m);
+    }
+
+    #[test]
+    fn the_committed_blob_reserialises_byte_for_byte() {
+        // Pins the blob format: the writer must produce exactly what the
+        // trainer committed (weights/classifier.bin).
+        let blob = crate::classify::BUILTIN_WEIGHTS;
+        assert!(Model::from_bytes(blob).unwrap().to_bytes() == blob);
     }
 
     #[test]
