@@ -360,8 +360,18 @@ impl Calibrator {
         if !(o.head[1] < o.foot[1]) || !o.extent().is_finite() {
             return;
         }
-        let k = self.cfg.anchors_per_track;
-        let slot = match self.slots.iter().position(|s| s.used && s.id == id) {
+        let slot = self.slot_of(frame, id);
+        let o = self.slots[slot].smooth(o);
+        if self.slots[slot].recent_len < ANCHOR_SMOOTHING {
+            return; // not enough frames of this track yet
+        }
+        self.add_anchor(frame, slot, o);
+    }
+
+    /// The slot of track `id`, taking a free one (else the one seen longest
+    /// ago) for a new track.
+    fn slot_of(&mut self, frame: u64, id: u32) -> usize {
+        match self.slots.iter().position(|s| s.used && s.id == id) {
             Some(s) => s,
             None => {
                 // A free slot, else replace the track seen longest ago.
@@ -385,11 +395,13 @@ impl Calibrator {
                 };
                 s
             }
-        };
-        let o = self.slots[slot].smooth(o);
-        if self.slots[slot].recent_len < ANCHOR_SMOOTHING {
-            return; // not enough frames of this track yet
         }
+    }
+
+    /// Stores `o` as the next anchor of `slot` unless it is within
+    /// `anchor_step_px` of the previous one; thins a full track.
+    fn add_anchor(&mut self, frame: u64, slot: usize, o: HeadFoot) {
+        let k = self.cfg.anchors_per_track;
         let base = slot * k;
         let len = self.slots[slot].len;
         if len > 0 {
@@ -508,9 +520,11 @@ impl Calibrator {
             let id = u32::MAX - i as u32;
             for a in t {
                 let valid = a.head.iter().chain(a.foot.iter()).all(|x| x.is_finite());
-                if valid {
-                    // Saved anchors are already thinned, so the step filter keeps them.
-                    self.observe(0, id, *a);
+                if valid && a.head[1] < a.foot[1] {
+                    // Saved anchors were smoothed and thinned when first
+                    // stored: they go straight into the store.
+                    let slot = self.slot_of(0, id);
+                    self.add_anchor(0, slot, *a);
                     n += 1;
                 }
             }

@@ -247,6 +247,9 @@ fn state_file_round_trip_and_corrupt_file() {
     let mut d = Calibrator::new(&cfg, 640, 480);
     let n = d.resume(&saved);
     assert_eq!(n, c.anchor_count());
+    // Every saved anchor is restored as it was (not re-smoothed as if it
+    // were a new frame's observation).
+    assert_eq!(d.anchor_count(), c.anchor_count());
     let e = d.estimate().unwrap();
     assert!((e.geom.focal() / f64::from(fin.f_px) - 1.0).abs() < 0.01);
     // A different frame size is refused.
