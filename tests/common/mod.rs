@@ -43,3 +43,12 @@ pub fn synthetic_y4m(size: Size, frames: usize) -> Vec<u8> {
 pub fn stature_bin() -> &'static str {
     env!("CARGO_BIN_EXE_stature")
 }
+
+/// An empty scratch directory `stature-<name>-<pid>` under the system temp
+/// dir (emptied first if an earlier run left it).
+pub fn fresh_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("stature-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}

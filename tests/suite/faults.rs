@@ -3,16 +3,8 @@
 
 use crate::common::stature_bin;
 use stature::calibrate::state::parse_state;
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Duration;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("stature-faults-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// `/dev/full` accepts the open and fails every write with ENOSPC: a full
 /// filesystem without needing root to mount a small one.
@@ -90,7 +82,7 @@ fn delays(n: usize) -> impl Iterator<Item = Duration> {
 /// from it.
 #[test]
 fn sigkill_during_state_writes_leaves_a_complete_state_file() {
-    let dir = scratch("state");
+    let dir = crate::common::fresh_dir("faults-state");
     let state = dir.join("calibration.json");
     let config = dir.join("stature.toml");
     // A write at every calibration record (every few frames while it

@@ -72,9 +72,7 @@ fn tools(names: &[&str]) -> Option<Vec<PathBuf>> {
 /// root, Mosquitto drops to its own user.
 fn temp_dir(name: &str) -> PathBuf {
     use std::os::unix::fs::PermissionsExt;
-    let d = std::env::temp_dir().join(format!("stature-mqtt-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    let d = common::fresh_dir(&format!("mqtt-{name}"));
     std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o777)).unwrap();
     d
 }
