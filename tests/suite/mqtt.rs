@@ -777,11 +777,23 @@ fn broker_outage_mid_run_loses_no_final_height() {
         },
     );
     let (stopped, restarted) = (stopped.unwrap(), restarted.unwrap());
-    // `offline` is the camera's last message, after `bye`.
+    // `offline` is the camera's last message, after `bye`. The broker's
+    // restart can publish an earlier `offline` (the lost session's will),
+    // so wait for the whole ending: `bye` arrived, the camera came back
+    // online, and the last status is `offline`.
+    let bye = json(records.last().unwrap());
+    let status_topic = format!("{prefix}/status");
     assert!(
-        sub.wait(PATIENCE, |m| m.iter().any(|m| m.topic
-            == format!("{prefix}/status")
-            && m.payload == "offline")),
+        sub.wait(PATIENCE, |m| {
+            let st: Vec<&str> = m
+                .iter()
+                .filter(|m| m.topic == status_topic)
+                .map(|m| m.payload.as_str())
+                .collect();
+            m.iter().any(|m| m.payload == bye)
+                && st.iter().filter(|p| **p == "online").count() >= 2
+                && st.last() == Some(&"offline")
+        }),
         "bye never arrived: {:?}",
         sub.under(prefix).last()
     );
