@@ -21,6 +21,7 @@
 //!   head–foot extent drops or jumps suddenly (an occluder cut it, or it
 //!   merged with something).
 
+pub mod axis;
 pub mod colour;
 
 use crate::calibrate::geometry::HeadFoot;
@@ -63,6 +64,10 @@ pub struct TrackConfig {
     /// Head/foot extent change between samples that marks a cut or a
     /// merge (fraction); such samples are rejected.
     pub max_extent_change: f64,
+    /// Head and foot points on the silhouette's fitted body axis ([`axis`]):
+    /// the rows of eq. 5, the columns of the axis. `false`: eq. 5 as the
+    /// paper has it (top-most pixel, mean of the bottom-most ten).
+    pub axis_points: bool,
     /// Random seed of the particle filters.
     pub seed: u64,
 }
@@ -79,6 +84,7 @@ impl Default for TrackConfig {
             min_overlap: 0.3,
             position_noise: 0.05,
             max_extent_change: 0.15,
+            axis_points: true,
             seed: 3,
         }
     }
@@ -284,6 +290,7 @@ impl Tracker {
                             t,
                             frame_no,
                             r,
+                            regions.runs_of(r),
                             &self.cfg,
                             &self.table,
                             frame,
@@ -350,6 +357,7 @@ impl Tracker {
                 &mut t,
                 frame_no,
                 r,
+                regions.runs_of(r),
                 &self.cfg,
                 &self.table,
                 frame,
@@ -472,6 +480,7 @@ fn snap(
     t: &mut Track,
     frame_no: u64,
     r: &Region,
+    runs: &[crate::detect::Run],
     cfg: &TrackConfig,
     table: &ColourTable,
     frame: &Frame,
@@ -503,9 +512,16 @@ fn snap(
     for (m, x) in t.hist.iter_mut().zip(h.iter()) {
         *m = 0.9 * *m + 0.1 * x;
     }
-    let hf = HeadFoot {
-        head: [f64::from(r.head[0]), f64::from(r.head[1])],
-        foot: [f64::from(r.foot[0]), f64::from(r.foot[1])],
+    let (hy, fy) = (f64::from(r.head[1]), f64::from(r.foot[1]));
+    let hf = match cfg.axis_points.then(|| axis::body_axis(runs)).flatten() {
+        Some(a) => HeadFoot {
+            head: [a.x_at(hy), hy],
+            foot: [a.x_at(fy), fy],
+        },
+        None => HeadFoot {
+            head: [f64::from(r.head[0]), hy],
+            foot: [f64::from(r.foot[0]), fy],
+        },
     };
     t.last = hf;
     t.last_seen = frame_no;

@@ -1,0 +1,200 @@
+//! The body axis of a person's silhouette: the line through the centres of
+//! its rows, fitted robustly. Head and foot points are taken on it.
+//!
+//! Why: the paper's head point is the top-most region pixel and its foot
+//! the mean of the bottom-most ten (eq. 5). Their rows are well defined,
+//! but their columns are not: the top of a head is a flat run of several
+//! pixels, and the lowest ten pixels of a walking person are often one
+//! foot, half a stride off the body's centre. Measured on the simulated
+//! scenes (`bench/live_eval.rs`) that made the head–foot line of a single
+//! frame lean by 7° (standard deviation) — as much as the true verticals
+//! fan out across the whole image, which is the signal the vanishing point
+//! is fitted from. Every row of the silhouette is a measurement of the
+//! axis; fitted through all of them (with rows far off the line, a swinging
+//! arm or a shadow at the feet, down-weighted), the direction is several
+//! times steadier, and head and foot keep the rows of eq. 5.
+
+use crate::detect::Run;
+
+/// The fitted axis `x = x_mid + slope·(y − y_mid)`, pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Axis {
+    /// Mean row of the rows used.
+    pub y_mid: f64,
+    /// Axis column at `y_mid`.
+    pub x_mid: f64,
+    /// Columns per row (0 for an axis straight down the image).
+    pub slope: f64,
+}
+
+impl Axis {
+    /// The axis column at row `y`.
+    pub fn x_at(&self, y: f64) -> f64 {
+        self.x_mid + self.slope * (y - self.y_mid)
+    }
+}
+
+/// Passes of iteratively reweighted least squares after the plain fit.
+const REWEIGHT_PASSES: usize = 3;
+
+/// Rows whose centre is farther than this many mean absolute residuals
+/// from the previous fit get no weight (Tukey's biweight cut-off).
+const CUTOFF: f64 = 3.0;
+
+/// Fewest rows worth a fit.
+const MIN_ROWS: usize = 8;
+
+/// Calls `f(y, centre)` for every row of `runs` (sorted by row, as
+/// [`crate::detect::RegionSet::runs_of`] gives them), with the row's
+/// pixel-weighted mean column.
+fn for_each_row(runs: &[Run], mut f: impl FnMut(f64, f64)) {
+    let mut i = 0;
+    while i < runs.len() {
+        let y = runs[i].y;
+        let (mut n, mut sx2) = (0u64, 0u64);
+        while i < runs.len() && runs[i].y == y {
+            let r = runs[i];
+            let len = u64::from(r.x1 - r.x0) + 1;
+            n += len;
+            sx2 += len * (u64::from(r.x0) + u64::from(r.x1));
+            i += 1;
+        }
+        f(f64::from(y), sx2 as f64 / (2.0 * n as f64));
+    }
+}
+
+/// Weighted least squares of row centre on row, `w(y, centre)` the weight.
+fn fit(runs: &[Run], w: impl Fn(f64, f64) -> f64) -> Option<(Axis, usize)> {
+    let (mut sw, mut sy, mut sx, mut syy, mut sxy, mut rows) = (0.0, 0.0, 0.0, 0.0, 0.0, 0);
+    for_each_row(runs, |y, x| {
+        let k = w(y, x);
+        if k > 0.0 {
+            sw += k;
+            sy += k * y;
+            sx += k * x;
+            syy += k * y * y;
+            sxy += k * x * y;
+            rows += 1;
+        }
+    });
+    if rows < MIN_ROWS || sw <= 0.0 {
+        return None;
+    }
+    let (ym, xm) = (sy / sw, sx / sw);
+    let vy = syy / sw - ym * ym;
+    if vy <= 1.0 {
+        return None;
+    }
+    let slope = (sxy / sw - xm * ym) / vy;
+    Some((
+        Axis {
+            y_mid: ym,
+            x_mid: xm,
+            slope,
+        },
+        rows,
+    ))
+}
+
+/// The body axis of a region's run-length mask; `None` when it has fewer
+/// than a handful of rows.
+pub fn body_axis(runs: &[Run]) -> Option<Axis> {
+    let (mut axis, _) = fit(runs, |_, _| 1.0)?;
+    for _ in 0..REWEIGHT_PASSES {
+        // Scale of the residuals about the current fit.
+        let (mut sum, mut n) = (0.0, 0usize);
+        for_each_row(runs, |y, x| {
+            sum += (x - axis.x_at(y)).abs();
+            n += 1;
+        });
+        let scale = (sum / n.max(1) as f64).max(0.5) * CUTOFF;
+        let prev = axis;
+        match fit(runs, |y, x| {
+            let u = (x - prev.x_at(y)) / scale;
+            if u.abs() >= 1.0 {
+                0.0
+            } else {
+                (1.0 - u * u).powi(2)
+            }
+        }) {
+            Some((a, _)) => axis = a,
+            None => break,
+        }
+    }
+    Some(axis)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Runs of a slanted bar `width` wide from row `y0` to `y1` whose
+    /// centre moves `slope` columns per row, plus optional extra runs.
+    fn bar(y0: u16, y1: u16, x_top: f64, slope: f64, width: u16) -> Vec<Run> {
+        (y0..=y1)
+            .map(|y| {
+                let c = x_top + slope * f64::from(y - y0);
+                let x0 = (c - f64::from(width) / 2.0).round() as u16;
+                Run {
+                    y,
+                    x0,
+                    x1: x0 + width - 1,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn recovers_a_slanted_bar() {
+        let runs = bar(10, 110, 50.0, 0.08, 9);
+        let a = body_axis(&runs).unwrap();
+        assert!((a.slope - 0.08).abs() < 0.005, "{a:?}");
+        assert!((a.x_at(10.0) - 50.0).abs() < 0.6, "{a:?}");
+    }
+
+    #[test]
+    fn a_side_blob_on_a_few_rows_does_not_tilt_it() {
+        // A straight body with a shadow sticking out to the right over its
+        // bottom eight rows (what the detector leaves at the feet).
+        let mut runs = bar(0, 99, 40.0, 0.0, 12);
+        for r in runs.iter_mut().skip(92) {
+            r.x1 += 30;
+        }
+        let a = body_axis(&runs).unwrap();
+        assert!(a.slope.abs() < 0.01, "{a:?}");
+        assert!((a.x_at(99.0) - 40.0).abs() < 1.0, "{a:?}");
+        // The plain least-squares fit is pulled over by the blob.
+        let (plain, _) = fit(&runs, |_, _| 1.0).unwrap();
+        assert!(plain.slope > 0.03, "{plain:?}");
+    }
+
+    #[test]
+    fn two_legs_give_the_centre_between_them() {
+        let mut runs = bar(0, 59, 30.0, 0.0, 10);
+        for y in 60..100u16 {
+            // Legs apart by a growing stride.
+            let s = (y - 60) / 4;
+            runs.push(Run {
+                y,
+                x0: 25 - s,
+                x1: 28 - s,
+            });
+            runs.push(Run {
+                y,
+                x0: 32 + s,
+                x1: 35 + s,
+            });
+        }
+        let a = body_axis(&runs).unwrap();
+        assert!(
+            a.slope.abs() < 0.01 && (a.x_at(99.0) - 30.0).abs() < 0.6,
+            "{a:?}"
+        );
+    }
+
+    #[test]
+    fn too_few_rows_give_none() {
+        assert_eq!(body_axis(&bar(0, 5, 10.0, 0.0, 4)), None);
+        assert_eq!(body_axis(&[]), None);
+    }
+}
