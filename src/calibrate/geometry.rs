@@ -1,6 +1,7 @@
-//! Pure single-view geometry: the vertical vanishing point from head–foot
-//! lines, the horizon from head–head/foot–foot intersections, the camera of
-//! paper eq. 3 and the cross-ratio height of METHOD.md §5–6.
+//! Pure single-view geometry: observations and anchors, normalised
+//! coordinates, the camera of paper eq. 3 and the cross-ratio height of
+//! METHOD.md §5–6. The fits that estimate the geometry from people are in
+//! [`super::vertical`] and [`super::horizon`].
 //!
 //! Everything works in *normalised* coordinates (pixel minus principal
 //! point, divided by half the larger image side) so that the homogeneous
@@ -15,8 +16,7 @@
 //! from the principal point; `f² = d·|v−p|` (eq. 3).
 
 use crate::camera::Camera;
-use crate::rng::Rng;
-use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use nalgebra::Vector3;
 
 /// One upright person seen in one frame: head-top and foot image points, pixels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -31,6 +31,46 @@ impl HeadFoot {
     /// Image extent head to foot, pixels.
     pub fn extent(&self) -> f64 {
         dist(self.head, self.foot)
+    }
+}
+
+/// One calibration anchor: a person's head and foot, pixels, averaged over
+/// a few consecutive frames, with the direction the foot was moving.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Anchor {
+    /// Head point `[u, v]`.
+    pub head: [f64; 2],
+    /// Foot point `[u, v]`.
+    pub foot: [f64; 2],
+    /// Image direction of the foot's motion, a unit vector scaled down
+    /// toward zero for a person barely moving (`[0, 0]`: standing, or not
+    /// known, as in state files of earlier versions).
+    #[serde(default)]
+    pub motion: [f64; 2],
+}
+
+impl Anchor {
+    /// Head and foot alone.
+    pub fn head_foot(&self) -> HeadFoot {
+        HeadFoot {
+            head: self.head,
+            foot: self.foot,
+        }
+    }
+
+    /// Image extent head to foot, pixels.
+    pub fn extent(&self) -> f64 {
+        dist(self.head, self.foot)
+    }
+}
+
+impl From<HeadFoot> for Anchor {
+    fn from(o: HeadFoot) -> Self {
+        Anchor {
+            head: o.head,
+            foot: o.foot,
+            motion: [0.0; 2],
+        }
     }
 }
 
@@ -65,178 +105,6 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
 }
 
-/// Distance (normalised units) of a finite homogeneous point `x` (z = 1)
-/// from the line through the finite point `m` and the homogeneous `v`.
-fn residual_to_vp(v: &Vector3<f64>, m: &Vector3<f64>, x: &Vector3<f64>) -> f64 {
-    let l = m.cross(v);
-    let n = (l.x * l.x + l.y * l.y).sqrt();
-    if n < 1e-300 {
-        return 0.0;
-    }
-    (l.dot(x) / n).abs()
-}
-
-/// Robust fit of the vertical vanishing point.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VvpFit {
-    /// Homogeneous normalised point, unit norm, `z >= 0` (the image side
-    /// reached by walking from head to foot when finite).
-    pub v: Vector3<f64>,
-    /// Observations within the inlier threshold.
-    pub inliers: usize,
-    /// Root-mean-square head distance from its line to `v`, pixels (inliers).
-    pub rms_px: f64,
-}
-
-/// Settings of the vanishing point RANSAC.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VvpParams {
-    /// Inlier threshold: head distance from the line through the
-    /// head–foot midpoint and `v`, pixels.
-    pub inlier_px: f64,
-    /// RANSAC hypotheses.
-    pub iterations: usize,
-}
-
-/// Vertical vanishing point from head–foot lines: RANSAC over pairs of
-/// lines, then iteratively reweighted homogeneous least squares on the
-/// inliers (the weights turn the algebraic distance of `v` from each line
-/// into the pixel distance of the head from the line `midpoint → v`).
-/// `inlier` is scratch of `obs.len()` flags and ends marking the inliers.
-/// `None` with fewer than 8 usable observations or no consensus.
-pub fn fit_vvp(
-    obs: &[HeadFoot],
-    norm: &Normaliser,
-    params: &VvpParams,
-    rng: &mut Rng,
-    inlier: &mut [bool],
-) -> Option<VvpFit> {
-    let n = obs.len().min(inlier.len());
-    if n < 8 {
-        return None;
-    }
-    let tau = params.inlier_px / norm.s;
-    let line = |o: &HeadFoot| {
-        let l = norm.point(o.head).cross(&norm.point(o.foot));
-        let k = (l.x * l.x + l.y * l.y).sqrt();
-        if k > 1e-12 {
-            l / k
-        } else {
-            l
-        }
-    };
-    let mid =
-        |o: &HeadFoot| norm.point([0.5 * (o.head[0] + o.foot[0]), 0.5 * (o.head[1] + o.foot[1])]);
-    let count = |v: &Vector3<f64>| {
-        let mut c = 0usize;
-        for o in &obs[..n] {
-            if residual_to_vp(v, &mid(o), &norm.point(o.head)) <= tau {
-                c += 1;
-            }
-        }
-        c
-    };
-    let mut best: Option<(usize, Vector3<f64>)> = None;
-    for _ in 0..params.iterations {
-        let i = rng.below(n);
-        let j = rng.below(n);
-        if i == j {
-            continue;
-        }
-        let v = line(&obs[i]).cross(&line(&obs[j]));
-        let k = v.norm();
-        if k < 1e-12 {
-            continue;
-        }
-        let v = v / k;
-        let c = count(&v);
-        if best.map_or(true, |(bc, _)| c > bc) {
-            best = Some((c, v));
-        }
-    }
-    let (_, mut v) = best?;
-    // Refinement: minimise sum_i (w_i l_i·V)^2 over unit V, w_i from the last V.
-    for _ in 0..4 {
-        let mut m = Matrix3::zeros();
-        let mut used = 0usize;
-        for (o, flag) in obs[..n].iter().zip(inlier.iter_mut()) {
-            let mi = mid(o);
-            *flag = residual_to_vp(&v, &mi, &norm.point(o.head)) <= tau;
-            if !*flag {
-                continue;
-            }
-            let l = line(o);
-            // |l·V| is the distance of V from l scaled by V's homogeneous
-            // weight; dividing by |V_xy - m V_z| gives the angle, and the
-            // half extent turns the angle into a head displacement.
-            let gap = ((v.x - mi.x * v.z).powi(2) + (v.y - mi.y * v.z).powi(2)).sqrt();
-            let half = 0.5 * o.extent() / norm.s;
-            let w = half / gap.max(1e-9);
-            m += (w * w) * (l * l.transpose());
-            used += 1;
-        }
-        if used < 2 {
-            return None;
-        }
-        let eig = SymmetricEigen::new(m);
-        let (mut k, mut lo) = (0, f64::INFINITY);
-        for (idx, &e) in eig.eigenvalues.iter().enumerate() {
-            if e < lo {
-                lo = e;
-                k = idx;
-            }
-        }
-        v = eig.eigenvectors.column(k).into_owned();
-    }
-    if v.z < 0.0 {
-        v = -v;
-    }
-    // The algebraic solution above is biased by noise in the line
-    // coefficients (errors in variables push `v` outward); finish with the
-    // geometric cost itself, the summed squared head distances from the
-    // lines `midpoint → v`, by coordinate descent in (direction, inverse
-    // distance), which stays regular when `v` is at infinity.
-    let cost = |phi: f64, w: f64| {
-        let v = Vector3::new(libm::sin(phi), libm::cos(phi), w);
-        let mut c = 0.0;
-        for (o, &flag) in obs[..n].iter().zip(inlier.iter()) {
-            if flag {
-                let r = residual_to_vp(&v, &mid(o), &norm.point(o.head));
-                c += r * r;
-            }
-        }
-        c
-    };
-    let rho = (v.x * v.x + v.y * v.y).sqrt();
-    if rho > 1e-12 {
-        let (mut phi, mut w) = (libm::atan2(v.x, v.y), v.z / rho);
-        for round in 0..3 {
-            let k = 1.0 / f64::from(1 + round);
-            phi = golden(phi - 0.02 * k, phi + 0.02 * k, |x| cost(x, w));
-            let span = 0.2 * w.abs().max(0.05) * k;
-            w = golden(w - span, w + span, |x| cost(phi, x));
-        }
-        let refined = Vector3::new(libm::sin(phi), libm::cos(phi), w).normalize();
-        if cost(phi, w) <= cost(libm::atan2(v.x, v.y), v.z / rho) {
-            v = if refined.z < 0.0 { -refined } else { refined };
-        }
-    }
-    let (mut inl, mut ss) = (0usize, 0.0);
-    for (o, flag) in obs[..n].iter().zip(inlier.iter_mut()) {
-        let r = residual_to_vp(&v, &mid(o), &norm.point(o.head));
-        *flag = r <= tau;
-        if *flag {
-            inl += 1;
-            ss += r * r;
-        }
-    }
-    (inl >= 2).then(|| VvpFit {
-        v,
-        inliers: inl,
-        rms_px: (ss / inl as f64).sqrt() * norm.s,
-    })
-}
-
 /// Minimum of a unimodal `f` on `[a, b]` by golden-section search (40 steps).
 pub fn golden(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> f64 {
     let phi = 0.618_033_988_749_895;
@@ -259,127 +127,6 @@ pub fn golden(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> f64 {
         }
     }
     0.5 * (a + b)
-}
-
-/// One horizon measurement from two observations of the same person:
-/// the intersection of the head–head and foot–foot lines projected on the
-/// axis from `p` toward `v`, with what its uncertainty depends on.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct OffsetSample {
-    /// Horizon distance from `p` on the side away from `v`, normalised units.
-    pub d: f64,
-    /// |g_b − g_a|: difference of the two image extents along the axis.
-    pub dg: f64,
-    /// Foot positions along the axis.
-    pub t: [f64; 2],
-    /// Head/foot noise, normalised units.
-    pub noise: f64,
-}
-
-impl OffsetSample {
-    /// Standard deviation of `d` if the true offset is `d_ref`.
-    ///
-    /// Error model: image extents `g` along the axis grow with the foot's
-    /// distance `D = t + d` below the horizon, `g ∝ D`; two extents give
-    /// `d = (g1 t2 − g2 t1) / (g2 − g1)`, whose sensitivity to extent noise
-    /// is `D_k / (g2 − g1)`. Evaluating `D` at a common `d_ref` rather than
-    /// at each sample's own `d` avoids favouring samples that happen to
-    /// come out small.
-    pub fn sigma(&self, d_ref: f64) -> f64 {
-        let (da, db) = (self.t[0] + d_ref, self.t[1] + d_ref);
-        self.noise * (da * da + db * db).sqrt() / self.dg
-    }
-}
-
-/// The horizon measurement of a pair (`None` when the two lines are
-/// parallel along the axis, or the positions barely differ in depth).
-/// `axis` is the unit direction from `p` to `v` (normalised coordinates);
-/// `noise_px` the assumed head/foot noise.
-pub fn offset_sample(
-    a: &HeadFoot,
-    b: &HeadFoot,
-    norm: &Normaliser,
-    axis: [f64; 2],
-    noise_px: f64,
-) -> Option<OffsetSample> {
-    let (ha, fa) = (norm.point(a.head), norm.point(a.foot));
-    let (hb, fb) = (norm.point(b.head), norm.point(b.foot));
-    let x = ha.cross(&hb).cross(&fa.cross(&fb));
-    let along = x.x * axis[0] + x.y * axis[1];
-    if x.z.abs() < 1e-12 * along.abs().max(1e-300) {
-        return None;
-    }
-    let d = -along / x.z;
-    let t = |p: &Vector3<f64>| p.x * axis[0] + p.y * axis[1];
-    let (ga, gb) = (t(&fa) - t(&ha), t(&fb) - t(&hb));
-    let dg = (gb - ga).abs();
-    if dg < 1e-9 || !d.is_finite() {
-        return None;
-    }
-    Some(OffsetSample {
-        d,
-        dg,
-        t: [t(&fa), t(&fb)],
-        noise: noise_px / norm.s,
-    })
-}
-
-/// Robust weighted estimate of the horizon offset from pair samples:
-/// RANSAC over candidate values (score: summed inverse variances of the
-/// samples within 3σ of the candidate), then inverse-variance weighted mean
-/// of the inliers, repeated until stable. Returns `(d, sigma_d, inliers)`.
-pub fn fit_offset(
-    samples: &[OffsetSample],
-    rng: &mut Rng,
-    iterations: usize,
-) -> Option<(f64, f64, usize)> {
-    if samples.len() < 3 {
-        return None;
-    }
-    let score = |c: f64| {
-        let mut s = 0.0;
-        for x in samples {
-            let sg = x.sigma(c);
-            if (x.d - c).abs() <= 3.0 * sg {
-                s += 1.0 / (sg * sg);
-            }
-        }
-        s
-    };
-    let mut best = (f64::NEG_INFINITY, 0.0);
-    for _ in 0..iterations.min(samples.len() * 2) {
-        let c = samples[rng.below(samples.len())].d;
-        if c <= 0.0 {
-            continue;
-        }
-        let s = score(c);
-        if s > best.0 {
-            best = (s, c);
-        }
-    }
-    if !best.0.is_finite() {
-        return None;
-    }
-    let mut d = best.1;
-    let mut out = None;
-    for _ in 0..8 {
-        let (mut sw, mut swd, mut k) = (0.0, 0.0, 0usize);
-        for x in samples {
-            let sg = x.sigma(d);
-            if (x.d - d).abs() <= 3.0 * sg {
-                let w = 1.0 / (sg * sg);
-                sw += w;
-                swd += w * x.d;
-                k += 1;
-            }
-        }
-        if k < 3 || sw <= 0.0 {
-            break;
-        }
-        d = swd / sw;
-        out = Some((d, (1.0 / sw).sqrt(), k));
-    }
-    out.filter(|o| o.0 > 0.0)
 }
 
 /// Why the closed forms of eq. 3 cannot be trusted for this view.

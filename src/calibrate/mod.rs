@@ -1,23 +1,26 @@
 //! Self-calibration from walking people (paper §3.2, METHOD.md §4–5).
 //!
 //! Tracked people give head/foot observations. The calibrator keeps a
-//! bounded, spatially thinned store of them ("anchors": a track adds one
-//! only after its foot moved [`CalibrateConfig::anchor_step_px`], so a
-//! loitering person cannot dominate, and each track keeps at most
+//! bounded, spatially thinned store of them ("anchors": each the mean of a
+//! track's last [`ANCHOR_SMOOTHING`] observations with the direction the
+//! foot moved; a track adds one only after its foot moved
+//! [`CalibrateConfig::anchor_step_px`], so a loitering person cannot
+//! dominate, and each track keeps at most
 //! [`CalibrateConfig::anchors_per_track`]). Every
 //! [`CalibrateConfig::refit_interval`] frames with new anchors it refits:
 //!
-//! 1. vertical vanishing point `v`: RANSAC over head–foot lines, then
-//!    reweighted least squares on the inliers ([`geometry::fit_vvp`]);
-//! 2. horizon: for every pair of well-separated anchors of one track, the
-//!    head–head and foot–foot lines meet on the horizon; with the principal
-//!    point at the centre the horizon is perpendicular to `p→v`, so each
-//!    pair measures one number, its distance `d` from `p`; RANSAC and an
-//!    inverse-variance weighted mean give `d` ([`geometry::fit_offset`]);
+//! 1. vertical vanishing point `v` and the walkers' lean from the head–foot
+//!    lines, robustly ([`vertical::fit_vertical`]);
+//! 2. horizon: with the principal point at the centre the horizon is
+//!    perpendicular to `p→v`, so it is one number, its distance `d` from
+//!    `p`; it is the `d` under which every track keeps one height along its
+//!    path ([`horizon::fit_horizon`]: the paper's head–head/foot–foot
+//!    construction, measured with all of a track's anchors at once);
 //! 3. eq. 3: `f² = d·|v−p|`, `tan θ = f/|v−p|`, roll `= atan2(v_x, v_y)`;
 //! 4. metric scale, in one of three documented ways (see [`ScaleMode`]);
-//! 5. a confidence in 0..1 from inlier counts, precision of `d`, spatial
-//!    spread and stability between refits.
+//! 5. a confidence in 0..1 from the fits' own uncertainty (the standard
+//!    deviation of `f`), the number of tracks, the spatial spread and the
+//!    stability between refits.
 //!
 //! A calibration record is produced when the estimate changes materially
 //! (thresholds in the config), and a final one at the end. The store and the
@@ -25,14 +28,17 @@
 
 pub mod eval;
 pub mod geometry;
+pub mod horizon;
 pub mod state;
 pub mod synth;
+pub mod vertical;
 
 use crate::config::{check_range, ConfigError};
 use crate::report::record::Calibration;
 use crate::rng::Rng;
-use geometry::{golden, Degeneracy, HeadFoot, Normaliser, OffsetSample, ViewGeometry, VvpParams};
+use geometry::{Anchor, Degeneracy, HeadFoot, Normaliser, ViewGeometry};
 use serde::{Deserialize, Serialize};
+use vertical::VerticalParams;
 
 /// `[calibrate]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -45,11 +51,10 @@ pub struct CalibrateConfig {
     /// Scale mode (c): height of the first person tracked long enough
     /// (the installer walking through alone), metres (0 = not used).
     pub reference_height_m: f64,
-    /// Head/foot localisation noise assumed by the fits, pixels.
-    pub noise_px: f64,
-    /// Vertical vanishing point inlier threshold, pixels.
-    pub vvp_inlier_px: f64,
-    /// RANSAC hypotheses per refit.
+    /// Fit the walking lean with the vertical vanishing point
+    /// ([`vertical`]); `false` takes every head–foot line as vertical.
+    pub lean: bool,
+    /// Random line pairs tried for the vanishing point's starting point.
     pub ransac_iterations: usize,
     /// A track adds an anchor after its foot moved this far, pixels.
     pub anchor_step_px: f64,
@@ -57,9 +62,6 @@ pub struct CalibrateConfig {
     pub anchors_per_track: usize,
     /// Tracks kept in the store (the oldest is replaced when full).
     pub tracks: usize,
-    /// Anchors of one track pair up for the horizon when their feet are
-    /// at least this many person extents apart.
-    pub pair_separation: f64,
     /// Frames between refits (when new anchors arrived).
     pub refit_interval: u32,
     /// Below this tilt the view is "near level" (degrees).
@@ -83,13 +85,11 @@ impl Default for CalibrateConfig {
             prior_height_m: 1.70,
             camera_height_m: 0.0,
             reference_height_m: 0.0,
-            noise_px: 1.5,
-            vvp_inlier_px: 3.0,
+            lean: true,
             ransac_iterations: 300,
             anchor_step_px: 6.0,
             anchors_per_track: 32,
             tracks: 64,
-            pair_separation: 0.5,
             refit_interval: 10,
             min_tilt_deg: 4.0,
             max_tilt_deg: 60.0,
@@ -115,8 +115,6 @@ impl CalibrateConfig {
             self.reference_height_m,
             0.0..=2.5,
         )?;
-        check_range("calibrate.noise_px", self.noise_px, 0.1..=20.0)?;
-        check_range("calibrate.vvp_inlier_px", self.vvp_inlier_px, 0.2..=50.0)?;
         check_range(
             "calibrate.ransac_iterations",
             self.ransac_iterations,
@@ -129,11 +127,6 @@ impl CalibrateConfig {
             4..=256,
         )?;
         check_range("calibrate.tracks", self.tracks, 2..=1024)?;
-        check_range(
-            "calibrate.pair_separation",
-            self.pair_separation,
-            0.05..=20.0,
-        )?;
         check_range("calibrate.refit_interval", self.refit_interval, 1..=100000)?;
         check_range("calibrate.min_tilt_deg", self.min_tilt_deg, 0.0..=45.0)?;
         check_range("calibrate.max_tilt_deg", self.max_tilt_deg, 45.0..=90.0)?;
@@ -190,10 +183,13 @@ pub struct Estimate {
     pub camera_height: f64,
     /// Head–foot lines supporting `v`.
     pub inliers: u32,
-    /// Pair measurements supporting the horizon.
+    /// Anchors the horizon fit used.
     pub horizon_inliers: u32,
     /// Standard deviation of the focal length as a fraction of it.
     pub focal_rel_sigma: f64,
+    /// Walking lean: head offset across the vertical per unit extent for a
+    /// walker crossing the view ([`vertical::VerticalFit::lean`]).
+    pub lean: f64,
     /// Confidence 0..1.
     pub confidence: f64,
     /// Why eq. 3 is unreliable for this view, if it is.
@@ -253,19 +249,41 @@ struct Slot {
     recent_pos: usize,
 }
 
+/// A foot displacement over the smoothing window shorter than this
+/// fraction of the person's extent scales the motion direction down toward
+/// zero: a person standing or shuffling has no walking lean, and the
+/// direction of a tiny displacement is noise.
+const WALKING_DISPLACEMENT: f64 = 0.1;
+
 impl Slot {
-    /// Adds an observation and returns the mean of the latest ones.
-    fn smooth(&mut self, o: HeadFoot) -> HeadFoot {
+    /// Adds an observation and returns the mean of the latest ones, with
+    /// the direction the foot moved across them.
+    fn smooth(&mut self, o: HeadFoot) -> Anchor {
         self.recent[self.recent_pos] = o;
         self.recent_pos = (self.recent_pos + 1) % ANCHOR_SMOOTHING;
         self.recent_len = (self.recent_len + 1).min(ANCHOR_SMOOTHING);
         let n = self.recent_len as f64;
-        let mut m = HeadFoot::default();
+        let mut m = Anchor::default();
         for r in &self.recent[..self.recent_len] {
             for i in 0..2 {
                 m.head[i] += r.head[i] / n;
                 m.foot[i] += r.foot[i] / n;
             }
+        }
+        // Oldest to newest observation of the ring.
+        let newest = (self.recent_pos + ANCHOR_SMOOTHING - 1) % ANCHOR_SMOOTHING;
+        let oldest = if self.recent_len < ANCHOR_SMOOTHING {
+            0
+        } else {
+            self.recent_pos
+        };
+        let (a, b) = (self.recent[oldest].foot, self.recent[newest].foot);
+        let mv = [b[0] - a[0], b[1] - a[1]];
+        let len = (mv[0] * mv[0] + mv[1] * mv[1]).sqrt();
+        let full = WALKING_DISPLACEMENT * m.extent();
+        if len > 1e-9 && full > 0.0 {
+            let k = (len / full).min(1.0) / len;
+            m.motion = [mv[0] * k, mv[1] * k];
         }
         m
     }
@@ -279,11 +297,12 @@ pub struct Calibrator {
     norm: Normaliser,
     slots: Vec<Slot>,
     /// `slots.len() × anchors_per_track` anchors, slot-major.
-    anchors: Vec<HeadFoot>,
-    flat: Vec<HeadFoot>,
+    anchors: Vec<Anchor>,
+    flat: Vec<Anchor>,
     flat_slot: Vec<u16>,
     inlier: Vec<bool>,
-    samples: Vec<OffsetSample>,
+    /// Two `f64` per anchor for the fits.
+    scratch: Vec<f64>,
     ratios: Vec<f64>,
     rng: Rng,
     seq: u64,
@@ -299,11 +318,6 @@ pub struct Calibrator {
     fps: f64,
 }
 
-/// Upper bound on horizon pair samples per track: all pairs of its anchors.
-fn pairs_per_track(k: usize) -> usize {
-    k * (k - 1) / 2
-}
-
 impl Calibrator {
     /// Sizes the store for a `width`×`height` image.
     pub fn new(cfg: &CalibrateConfig, width: usize, height: usize) -> Self {
@@ -312,11 +326,11 @@ impl Calibrator {
             cfg: cfg.clone(),
             norm: Normaliser::for_image(width, height),
             slots: vec![Slot::default(); cfg.tracks],
-            anchors: vec![HeadFoot::default(); total],
+            anchors: vec![Anchor::default(); total],
             flat: Vec::with_capacity(total),
             flat_slot: Vec::with_capacity(total),
             inlier: vec![false; total],
-            samples: Vec::with_capacity(cfg.tracks * pairs_per_track(cfg.anchors_per_track)),
+            scratch: vec![0.0; 2 * total],
             ratios: Vec::with_capacity(cfg.anchors_per_track.max(cfg.tracks)),
             rng: Rng::new(cfg.seed),
             seq: 0,
@@ -400,7 +414,7 @@ impl Calibrator {
 
     /// Stores `o` as the next anchor of `slot` unless it is within
     /// `anchor_step_px` of the previous one; thins a full track.
-    fn add_anchor(&mut self, frame: u64, slot: usize, o: HeadFoot) {
+    fn add_anchor(&mut self, frame: u64, slot: usize, o: Anchor) {
         let k = self.cfg.anchors_per_track;
         let base = slot * k;
         let len = self.slots[slot].len;
@@ -535,8 +549,7 @@ impl Calibrator {
         n
     }
 
-    /// The full refit (bounded work: ≤ tracks × anchors lines and all
-    /// in-track anchor pairs).
+    /// The full refit (bounded work: every stored anchor a few dozen times).
     fn refit(&mut self) {
         self.flat.clear();
         self.flat_slot.clear();
@@ -550,76 +563,38 @@ impl Calibrator {
                 self.flat_slot.push(s as u16);
             }
         }
-        let params = VvpParams {
-            inlier_px: self.cfg.vvp_inlier_px,
+        let params = VerticalParams {
             iterations: self.cfg.ransac_iterations,
+            lean: self.cfg.lean,
         };
         let n = self.flat.len();
-        let Some(vfit) = geometry::fit_vvp(
+        let Some(vfit) = vertical::fit_vertical(
             &self.flat,
             &self.norm,
             &params,
             &mut self.rng,
             &mut self.inlier[..n],
+            &mut self.scratch[..n],
         ) else {
             return;
         };
-        // Axis from p toward v in normalised coordinates (v may be far).
-        let v = vfit.v;
-        let (ax, ay) = if v.z.abs() > 1e-12 {
-            (v.x / v.z, v.y / v.z)
-        } else {
-            (v.x, v.y)
-        };
-        let an = (ax * ax + ay * ay).sqrt();
-        if an < 1e-12 {
-            return;
-        }
-        let axis = [ax / an, ay / an];
-        // Horizon pair samples from inlier anchors of the same track.
-        self.samples.clear();
-        let mut start = 0;
-        while start < n {
-            let s = self.flat_slot[start];
-            let mut end = start;
-            while end < n && self.flat_slot[end] == s {
-                end += 1;
-            }
-            for i in start..end {
-                if !self.inlier[i] {
-                    continue;
-                }
-                for j in i + 1..end {
-                    if !self.inlier[j] {
-                        continue;
-                    }
-                    let (a, b) = (&self.flat[i], &self.flat[j]);
-                    let sep =
-                        ((a.foot[0] - b.foot[0]).powi(2) + (a.foot[1] - b.foot[1]).powi(2)).sqrt();
-                    if sep < self.cfg.pair_separation * 0.5 * (a.extent() + b.extent()) {
-                        continue;
-                    }
-                    if let Some(x) =
-                        geometry::offset_sample(a, b, &self.norm, axis, self.cfg.noise_px)
-                    {
-                        if self.samples.len() < self.samples.capacity() {
-                            self.samples.push(x);
-                        }
-                    }
-                }
-            }
-            start = end;
-        }
-        let Some((d, sd, hinl)) =
-            geometry::fit_offset(&self.samples, &mut self.rng, self.cfg.ransac_iterations)
+        // The horizon needs a finite vanishing point (a level camera has
+        // none: NearLevel, and no estimate).
+        let Some(g0) = ViewGeometry::from_normalised(&vfit.vertical.homogeneous(), 1.0, &self.norm)
         else {
             return;
         };
-        let Some(geom0) = ViewGeometry::from_normalised(&v, d, &self.norm) else {
+        let Some(hfit) = horizon::fit_horizon(
+            &self.flat,
+            &self.flat_slot,
+            &self.inlier[..n],
+            &g0,
+            self.norm.s,
+            &mut self.scratch[..2 * n],
+        ) else {
             return;
         };
-        let geom = self.refine_offset(geom0, sd * self.norm.s);
-        // Scale.
+        let geom = ViewGeometry { d: hfit.d, ..g0 };
         let camera_height = match self.scale(&geom) {
             Some(h) if h.is_finite() && h > 0.0 => h,
             _ => return,
@@ -628,16 +603,18 @@ impl Calibrator {
             self.cfg.min_tilt_deg.to_radians(),
             self.cfg.max_tilt_deg.to_radians(),
         );
-        let focal_rel_sigma = 0.5 * sd / d;
+        // f² = d·r: relative errors of d and r = |v − p| (r ∝ 1/w) add.
+        let rel_d = hfit.sigma / hfit.d;
+        let rel_r = vfit.sigma_w / vfit.vertical.w.abs().max(1e-12);
+        let focal_rel_sigma = 0.5 * (rel_d * rel_d + rel_r * rel_r).sqrt();
         let prev_f = self.estimate.map(|e| e.geom.focal());
         let change = prev_f.map_or(1.0, |p| (geom.focal() / p - 1.0).abs());
         // Stability: smoothed agreement of successive refits.
         self.stability = 0.7 * self.stability + 0.3 * libm::exp(-change / 0.02);
         let spread = self.spread();
-        let c_lines = 1.0 - libm::exp(-(vfit.inliers as f64) / 60.0);
-        let c_pairs = 1.0 - libm::exp(-(hinl as f64) / 40.0);
-        let c_prec = libm::exp(-focal_rel_sigma / 0.02);
-        let mut confidence = c_lines * c_pairs * c_prec * spread * self.stability;
+        let c_tracks = 1.0 - libm::exp(-(hfit.tracks as f64) / 4.0);
+        let c_prec = libm::exp(-focal_rel_sigma / 0.03);
+        let mut confidence = c_tracks * c_prec * spread * self.stability;
         if degeneracy.is_some() {
             confidence *= 0.25;
         }
@@ -646,74 +623,13 @@ impl Calibrator {
             geom,
             camera_height,
             inliers: vfit.inliers as u32,
-            horizon_inliers: hinl as u32,
+            horizon_inliers: hfit.anchors as u32,
             focal_rel_sigma,
+            lean: vfit.lean,
             confidence: confidence.clamp(0.0, 1.0),
             degeneracy,
             version,
         });
-    }
-
-    /// Within-track consistency of geometry `g`: every person keeps one
-    /// height, so each track's mean relative height `r̄` predicts every
-    /// head from its foot ([`ViewGeometry::head_for_ratio`]); the cost is
-    /// the summed squared pixel difference between predicted and observed
-    /// head–foot extents over the VVP inliers of tracks with 3 or more of
-    /// them. (Measured in pixels, where the noise lives, so it has no
-    /// bias toward any `d`; a cost on the ratios normalised by their mean
-    /// favoured horizons that inflate the ratios.)
-    fn spread_cost(&self, g: &ViewGeometry) -> f64 {
-        let mut total = 0.0;
-        let n = self.flat.len();
-        let mut start = 0;
-        while start < n {
-            let s = self.flat_slot[start];
-            let mut end = start;
-            while end < n && self.flat_slot[end] == s {
-                end += 1;
-            }
-            let (mut k, mut sum) = (0usize, 0.0);
-            for i in start..end {
-                if self.inlier[i] {
-                    if let Some(r) = g.height_ratio(&self.flat[i]) {
-                        k += 1;
-                        sum += r;
-                    }
-                }
-            }
-            if k >= 3 {
-                let mean = sum / k as f64;
-                for i in start..end {
-                    let o = &self.flat[i];
-                    if !self.inlier[i] {
-                        continue;
-                    }
-                    if let Some(h) = g.head_for_ratio(o.foot, mean) {
-                        let pred = ((h[0] - o.foot[0]).powi(2) + (h[1] - o.foot[1]).powi(2)).sqrt();
-                        total += (pred - o.extent()).powi(2);
-                    }
-                }
-            }
-            start = end;
-        }
-        total
-    }
-
-    /// Least-squares refinement of the horizon offset `d` by golden-section
-    /// search within ±4σ (at least ±15 %) of the pair estimate, minimising
-    /// [`Calibrator::spread_cost`]. (`v` stays as fitted: refining it with
-    /// the same cost was tried and is ill-conditioned, trading `|v − p|`
-    /// against `d`.)
-    fn refine_offset(&self, g: ViewGeometry, sd_px: f64) -> ViewGeometry {
-        let span = (4.0 * sd_px).max(0.15 * g.d).min(0.5 * g.d);
-        let d = golden(g.d - span, g.d + span, |d| {
-            self.spread_cost(&ViewGeometry { d, ..g })
-        });
-        if d.is_finite() && d > 0.0 {
-            ViewGeometry { d, ..g }
-        } else {
-            g
-        }
     }
 
     /// Spatial spread of the anchors' feet: occupied cells of a 4×4 grid
@@ -762,7 +678,7 @@ impl Calibrator {
         self.ratios.clear();
         let k = self.cfg.anchors_per_track;
         for i in 0..self.slots[s].len {
-            if let Some(r) = geom.height_ratio(&self.anchors[s * k + i]) {
+            if let Some(r) = geom.height_ratio(&self.anchors[s * k + i].head_foot()) {
                 self.ratios.push(r);
             }
         }

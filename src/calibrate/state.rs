@@ -8,7 +8,7 @@
 //! the loop makes do not allocate (paths shorter than a few hundred bytes
 //! are converted on the stack by `std`).
 
-use super::geometry::HeadFoot;
+use super::geometry::Anchor;
 use super::Slot;
 use serde::ser::{SerializeSeq, SerializeStruct};
 use serde::{Deserialize, Serialize, Serializer};
@@ -29,8 +29,9 @@ pub struct Saved {
     pub width: u32,
     /// Frame height.
     pub height: u32,
-    /// Anchors per track, oldest first.
-    pub tracks: Vec<Vec<HeadFoot>>,
+    /// Anchors per track, oldest first (files of earlier builds have no
+    /// `motion`: those anchors count as standing).
+    pub tracks: Vec<Vec<Anchor>>,
 }
 
 /// Borrowed view of the store, serialised without copying.
@@ -38,7 +39,7 @@ pub(super) struct StateView<'a> {
     pub width: u32,
     pub height: u32,
     pub tracks: &'a [Slot],
-    pub anchors: &'a [HeadFoot],
+    pub anchors: &'a [Anchor],
     pub per_track: usize,
 }
 

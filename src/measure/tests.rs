@@ -19,6 +19,7 @@ fn estimate(cam: &Camera, confidence: f64) -> Estimate {
         inliers: 100,
         horizon_inliers: 100,
         focal_rel_sigma: 0.0,
+        lean: 0.0,
         confidence,
         degeneracy: None,
         version: 1,

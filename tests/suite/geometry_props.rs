@@ -5,9 +5,9 @@
 //! failure to a minimal camera and person.
 
 use proptest::prelude::*;
-use stature::calibrate::geometry::{
-    fit_vvp, offset_sample, HeadFoot, Normaliser, ViewGeometry, VvpParams,
-};
+use stature::calibrate::geometry::{Anchor, HeadFoot, Normaliser, ViewGeometry};
+use stature::calibrate::horizon::fit_horizon;
+use stature::calibrate::vertical::{fit_vertical, VerticalParams};
 use stature::camera::Camera;
 use stature::rng::Rng;
 
@@ -80,39 +80,54 @@ proptest! {
         spots in prop::collection::vec((0.0..1.0f64, 0.05..1.0f64, 1.4..2.0f64), 8..40),
         seed in any::<u64>(),
     ) {
-        let obs: Vec<HeadFoot> = spots
+        let obs: Vec<Anchor> = spots
             .iter()
             .filter_map(|&(fx, fy, h)| person(&cam, w, ht, fx, fy, h))
+            .map(Anchor::from)
             .collect();
         prop_assume!(obs.len() >= 8);
         let norm = Normaliser::for_image(w, ht);
-        let params = VvpParams { inlier_px: 1.0, iterations: 64 };
+        let params = VerticalParams { iterations: 64, lean: true };
         let mut inlier = vec![false; obs.len()];
-        let fit = fit_vvp(&obs, &norm, &params, &mut Rng::new(seed), &mut inlier)
+        let mut scratch = vec![0.0; obs.len()];
+        let fit = fit_vertical(&obs, &norm, &params, &mut Rng::new(seed), &mut inlier, &mut scratch)
             .expect("exact lines have a consensus");
         prop_assert_eq!(fit.inliers, obs.len());
         let truth = cam.vertical_vanishing_point();
-        let v = [norm.p[0] + norm.s * fit.v.x / fit.v.z, norm.p[1] + norm.s * fit.v.y / fit.v.z];
+        let vh = fit.vertical.homogeneous();
+        let v = [norm.p[0] + norm.s * vh.x / vh.z, norm.p[1] + norm.s * vh.y / vh.z];
         let r = near(truth, cam.principal);
         prop_assert!(near(v, truth) < 1e-6 * r, "v {v:?} vs {truth:?}");
     }
 
-    /// Two sightings of one person (same height, different depth) put the
-    /// horizon at its true distance from the principal point.
+    /// Two people, each seen three times at different depths (one height
+    /// each), put the horizon at its true distance from the principal point.
     #[test]
-    fn two_sightings_of_a_person_give_the_horizon(
+    fn people_keeping_their_height_give_the_horizon(
         (cam, w, ht) in camera(),
-        a in (0.0..1.0f64, 0.05..1.0f64),
-        b in (0.0..1.0f64, 0.05..1.0f64),
-        h in 1.4..2.0f64,
+        a in prop::collection::vec((0.0..1.0f64, 0.05..1.0f64), 3),
+        b in prop::collection::vec((0.0..1.0f64, 0.05..1.0f64), 3),
+        h in (1.4..2.0f64, 1.4..2.0f64),
     ) {
-        prop_assume!((a.1 - b.1).abs() > 0.1);
-        let (Some(pa), Some(pb)) = (person(&cam, w, ht, a.0, a.1, h), person(&cam, w, ht, b.0, b.1, h))
-        else { return Ok(()); };
-        let norm = Normaliser::for_image(w, ht);
+        let depth = |s: &[(f64, f64)]| {
+            let (lo, hi) = s.iter().fold((1.0f64, 0.0f64), |(l, u), p| (l.min(p.1), u.max(p.1)));
+            hi - lo
+        };
+        prop_assume!(depth(&a) > 0.2 && depth(&b) > 0.2);
+        let mut obs = Vec::new();
+        let mut track = Vec::new();
+        for (k, (spots, hk)) in [(&a, h.0), (&b, h.1)].into_iter().enumerate() {
+            for &(fx, fy) in spots.iter() {
+                let Some(o) = person(&cam, w, ht, fx, fy, hk) else { return Ok(()); };
+                obs.push(Anchor::from(o));
+                track.push(k as u16);
+            }
+        }
         let g = ViewGeometry::of_camera(&cam);
-        let axis = g.axis();
-        let s = offset_sample(&pa, &pb, &norm, axis, 1.0).expect("different depths");
-        prop_assert!((s.d * norm.s / g.d - 1.0).abs() < 1e-6, "d {} px vs {} px", s.d * norm.s, g.d);
+        let inlier = vec![true; obs.len()];
+        let mut scratch = vec![0.0; 2 * obs.len()];
+        let fit = fit_horizon(&obs, &track, &inlier, &g, (w.max(ht) / 2) as f64, &mut scratch)
+            .expect("two tracks of three");
+        prop_assert!((fit.d / g.d - 1.0).abs() < 1e-4, "d {} px vs {} px", fit.d, g.d);
     }
 }
