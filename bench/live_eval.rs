@@ -1,0 +1,544 @@
+//! What the live pipeline feeds the calibrator, against the simulated truth.
+//!
+//! `cargo run --release --example live_eval -- [--scene NAME|all] [--seeds 1,2] [--frames N]
+//! [--query 'shadows=0'] [--toml '[detect]\nclose_radius_y = 2']`
+//!
+//! Runs the whole loop on a simulated scene and matches every head/foot
+//! observation a track hands the calibrator to the true person under it
+//! (largest box IoU), then prints: how many observations are of a person,
+//! a dog, a car or nothing; head and foot errors against the truth; the
+//! angle between each observed head–foot line and the true vertical through
+//! its foot; track purity; and three calibrations from the same events —
+//! live points (what the loop does), the true points of the same
+//! (frame, track) events, and those true points with Gaussian noise of the
+//! measured size — so that input noise, bias and event selection can be
+//! told apart.
+
+use stature::calibrate::geometry::HeadFoot;
+use stature::calibrate::{CalibrateConfig, Calibrator};
+use stature::config::Config;
+use stature::report::Reporter;
+use stature::rng::Rng;
+use stature::run::Pipeline;
+use stature::source::sim::people::Kind;
+use stature::source::sim::SimSource;
+use stature::source::FrameSource;
+use std::collections::BTreeMap;
+
+struct Event {
+    frame: u64,
+    track: u32,
+    live: HeadFoot,
+    truth: Option<(Kind, u32, HeadFoot, f64)>,
+}
+
+fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
+    let ix = (a[2].min(b[2]) - a[0].max(b[0]) + 1.0).max(0.0);
+    let iy = (a[3].min(b[3]) - a[1].max(b[1]) + 1.0).max(0.0);
+    let i = ix * iy;
+    let area = |r: [f64; 4]| (r[2] - r[0] + 1.0) * (r[3] - r[1] + 1.0);
+    i / (area(a) + area(b) - i)
+}
+
+fn stats(v: &[f64]) -> (f64, f64) {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let s = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt();
+    (m, s)
+}
+
+fn calibrate(events: &[(u64, u32, HeadFoot)], cfg: &CalibrateConfig, w: usize, h: usize) -> String {
+    let mut c = Calibrator::new(cfg, w, h);
+    let mut last = 0;
+    for (f, id, o) in events {
+        c.observe(*f, *id, *o);
+        c.update(*f);
+        last = *f;
+    }
+    c.finish(last);
+    match c.estimate() {
+        Some(e) => format!(
+            "f {:7.1} tilt {:5.2} roll {:5.2} hc {:5.2} vvp ({:7.1},{:7.1}) d {:6.1} inl {:3}/{:3} hinl {:4} conf {:.2}",
+            e.geom.focal(),
+            e.geom.tilt().to_degrees(),
+            e.geom.roll().to_degrees(),
+            e.camera_height,
+            e.geom.v[0],
+            e.geom.v[1],
+            e.geom.d,
+            e.inliers,
+            c.anchor_count(),
+            e.horizon_inliers,
+            e.confidence
+        ),
+        None => "no estimate".into(),
+    }
+}
+
+/// True standing height of every person of the cast.
+fn sim_heights(sim: &SimSource) -> BTreeMap<u32, f64> {
+    sim.cast()
+        .iter()
+        .filter(|m| m.kind == Kind::Person)
+        .map(|m| (m.id, m.height_m))
+        .collect()
+}
+
+fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
+    let mut q = match frames {
+        Some(n) => format!("seed={seed}&frames={n}"),
+        None => format!("seed={seed}"),
+    };
+    if !extra.is_empty() {
+        q = format!("{q}&{extra}");
+    }
+    let mut sim = SimSource::open(scene, &q).expect("scene");
+    let st = sim.scene_truth().clone();
+    let cam = st.camera();
+    let cfg = Config::from_toml(toml).expect("--toml");
+    let info = sim.info().clone();
+    let mut p = Pipeline::new(&cfg, &info);
+    let (mut reporter, rx, _) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
+    let drain = std::thread::spawn(move || rx.iter().count());
+    let mut events: Vec<Event> = Vec::new();
+    for k in 0..sim.frames() {
+        sim.render(k, &mut p.frame);
+        p.process(&mut reporter);
+        for t in p.tracker().tracks() {
+            let Some(hf) = t.fresh else { continue };
+            let tb = [
+                f64::from(t.bbox.x0),
+                f64::from(t.bbox.y0),
+                f64::from(t.bbox.x1),
+                f64::from(t.bbox.y1),
+            ];
+            let mut best: Option<(f64, Kind, u32, HeadFoot, f64)> = None;
+            for o in sim.truth() {
+                let ob = o.bbox.map(f64::from);
+                let v = iou(tb, ob);
+                if v > 0.2 && best.as_ref().is_none_or(|b| v > b.0) {
+                    best = Some((
+                        v,
+                        o.kind,
+                        o.id,
+                        HeadFoot {
+                            head: o.head_px,
+                            foot: o.foot_px,
+                        },
+                        o.visible_fraction,
+                    ));
+                }
+            }
+            events.push(Event {
+                frame: k,
+                track: t.id,
+                live: hf,
+                truth: best.map(|b| (b.1, b.2, b.3, b.4)),
+            });
+        }
+    }
+    p.finish(&mut reporter);
+    drop(reporter);
+    drain.join().unwrap();
+
+    let (w, h) = (st.width, st.height);
+    let (mut person, mut dog, mut car, mut none) = (0, 0, 0, 0);
+    let (mut hx, mut hy, mut fx, mut fy, mut ext, mut ang) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let vvp = st.vertical_vp;
+    for e in &events {
+        match &e.truth {
+            None => none += 1,
+            Some((Kind::Dog, ..)) => dog += 1,
+            Some((Kind::Car, ..)) => car += 1,
+            Some((Kind::Person, _, t, vis)) => {
+                person += 1;
+                if *vis < 0.95 {
+                    continue;
+                }
+                hx.push(e.live.head[0] - t.head[0]);
+                hy.push(e.live.head[1] - t.head[1]);
+                fx.push(e.live.foot[0] - t.foot[0]);
+                fy.push(e.live.foot[1] - t.foot[1]);
+                ext.push(e.live.extent() / t.extent());
+                // Signed angle between the observed foot→head direction and
+                // the true foot→VVP-opposite direction (true vertical).
+                let a_obs = libm::atan2(
+                    e.live.head[0] - e.live.foot[0],
+                    e.live.foot[1] - e.live.head[1],
+                );
+                let a_true = libm::atan2(e.live.foot[0] - vvp[0], vvp[1] - e.live.foot[1]);
+                ang.push((a_obs - a_true).to_degrees());
+            }
+        }
+    }
+    println!(
+        "== {scene}:{seed} ({} frames): true f {:.1} tilt {:.2} roll {:.2} hc {:.2} vvp ({:.1},{:.1})",
+        sim.frames(),
+        cam.f,
+        st.tilt_deg,
+        st.roll_deg,
+        st.camera_height_m,
+        vvp[0],
+        vvp[1]
+    );
+    println!(
+        "observations {}: person {person}, dog {dog}, car {car}, nothing {none}",
+        events.len()
+    );
+    let pr = |n: &str, v: &[f64]| {
+        let (m, s) = stats(v);
+        let mut sorted = v.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let med = stature::calibrate::eval::quantile(&sorted, 0.5);
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let mad = 1.4826 * stature::calibrate::eval::quantile(&dev, 0.5);
+        println!("  {n:<18} mean {m:+7.2} sd {s:6.2} median {med:+7.2} robust sd {mad:6.2}");
+    };
+    pr("head dx px", &hx);
+    pr("head dy px", &hy);
+    pr("foot dx px", &fx);
+    pr("foot dy px", &fy);
+    pr("extent ratio", &ext);
+    pr("line angle deg", &ang);
+    // Lean: the head's offset across the true vertical through the foot,
+    // as a fraction of the extent, against the sine of the angle between
+    // the foot's motion (over the last 8 observations of the track) and
+    // that vertical.
+    let (mut xs, mut ys) = (vec![], vec![]);
+    let mut hist: BTreeMap<u32, Vec<(u64, HeadFoot)>> = BTreeMap::new();
+    for e in &events {
+        let h = hist.entry(e.track).or_default();
+        h.push((e.frame, e.live));
+        if h.len() < 9 {
+            continue;
+        }
+        let Some((Kind::Person, _, _, vis)) = e.truth else {
+            continue;
+        };
+        if vis < 0.95 {
+            continue;
+        }
+        let (_, old) = h[h.len() - 9];
+        let o = e.live;
+        let mv = [o.foot[0] - old.foot[0], o.foot[1] - old.foot[1]];
+        let ml = (mv[0] * mv[0] + mv[1] * mv[1]).sqrt();
+        if ml < 4.0 {
+            continue;
+        }
+        // Unit vertical (foot toward head, away from the VVP below).
+        let up = [o.foot[0] - vvp[0], o.foot[1] - vvp[1]];
+        let ul = (up[0] * up[0] + up[1] * up[1]).sqrt();
+        let up = [up[0] / ul, up[1] / ul];
+        let across = [-up[1], up[0]];
+        let hv = [o.head[0] - o.foot[0], o.head[1] - o.foot[1]];
+        let off = (hv[0] * across[0] + hv[1] * across[1]) / o.extent();
+        let sin_a = (mv[0] * across[0] + mv[1] * across[1]) / ml;
+        xs.push(sin_a);
+        ys.push(off);
+    }
+    // Vertical biases of head and foot against the true extent:
+    // dy = a + k·g by least squares.
+    {
+        let fit = |sel: &dyn Fn(&HeadFoot, &HeadFoot) -> f64| {
+            let (mut n, mut sg, mut sgg, mut sy, mut sgy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for e in &events {
+                let Some((Kind::Person, _, t, vis)) = e.truth else {
+                    continue;
+                };
+                if vis < 0.95 {
+                    continue;
+                }
+                let (g, y) = (t.extent(), sel(&e.live, &t));
+                if y.abs() > 30.0 {
+                    continue;
+                }
+                n += 1.0;
+                sg += g;
+                sgg += g * g;
+                sy += y;
+                sgy += g * y;
+            }
+            let k = (n * sgy - sg * sy) / (n * sgg - sg * sg);
+            let a = (sy - k * sg) / n;
+            (a, k, sg / n)
+        };
+        let (a, k, gm) = fit(&|l, t| l.foot[1] - t.foot[1]);
+        let (ah, kh, _) = fit(&|l, t| l.head[1] - t.head[1]);
+        println!("  foot dy = {a:+.2} px {k:+.4}*extent; head dy = {ah:+.2} px {kh:+.4}*extent (mean extent {gm:.0} px)");
+        let mut bins: BTreeMap<i64, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+        for e in &events {
+            let Some((Kind::Person, _, t, vis)) = e.truth else {
+                continue;
+            };
+            if vis < 0.95 {
+                continue;
+            }
+            let b = bins.entry((t.extent() / 20.0) as i64).or_default();
+            b.0.push(e.live.foot[1] - t.foot[1]);
+            b.1.push(e.live.head[1] - t.head[1]);
+        }
+        // The live foot's ground point against the true one, toward the
+        // camera along the radial line, in units of the person's height.
+        let mut gb: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
+        for e in &events {
+            let Some((Kind::Person, id, t, vis)) = e.truth else {
+                continue;
+            };
+            if vis < 0.95 {
+                continue;
+            }
+            let _ = id;
+            let (Some(gl), Some(gt)) = (cam.ground_point(e.live.foot), cam.ground_point(t.foot))
+            else {
+                continue;
+            };
+            let rho = |g: [f64; 2]| (g[0] * g[0] + g[1] * g[1]).sqrt();
+            // height from truth: head is projection of H above t.foot; use 1.7 nominal
+            gb.entry((t.extent() / 20.0) as i64)
+                .or_default()
+                .push((rho(gt) - rho(gl)) / 1.7);
+        }
+        print!("  ground offset toward camera / H by extent (median):");
+        for (k, v) in gb.iter_mut() {
+            v.sort_by(f64::total_cmp);
+            print!(
+                "  {}-{}: {:+.3}/{}",
+                k * 20,
+                k * 20 + 20,
+                v[v.len() / 2],
+                v.len()
+            );
+        }
+        println!();
+        print!("  by extent (median foot dy / head dy / n):");
+        for (k, (f, hh)) in bins.iter_mut() {
+            f.sort_by(f64::total_cmp);
+            hh.sort_by(f64::total_cmp);
+            print!(
+                "  {}-{}: {:+.1}/{:+.1}/{}",
+                k * 20,
+                k * 20 + 20,
+                f[f.len() / 2],
+                hh[hh.len() / 2],
+                f.len()
+            );
+        }
+        println!();
+    }
+    // Line angle error by foot column: lines too parallel show as an error
+    // that falls from left to right.
+    let mut bins = [(0.0f64, 0.0f64, 0usize); 5];
+    for e in &events {
+        let Some((Kind::Person, _, t, vis)) = e.truth else {
+            continue;
+        };
+        if vis < 0.95 {
+            continue;
+        }
+        let o = e.live;
+        let a_obs = libm::atan2(o.head[0] - o.foot[0], o.foot[1] - o.head[1]);
+        let a_true = libm::atan2(t.foot[0] - vvp[0], vvp[1] - t.foot[1]);
+        let b = ((o.foot[0] / w as f64 * 5.0) as usize).min(4);
+        bins[b].0 += (a_obs - a_true).to_degrees();
+        bins[b].1 += a_true.to_degrees();
+        bins[b].2 += 1;
+    }
+    print!("  angle error by column (err / true angle / n):");
+    for b in &bins {
+        let n = b.2.max(1) as f64;
+        print!("  {:+.2}/{:+.1}/{}", b.0 / n, b.1 / n, b.2);
+    }
+    println!();
+    let n = xs.len() as f64;
+    let sxx: f64 = xs.iter().map(|x| x * x).sum();
+    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| x * y).sum();
+    let lam = sxy / sxx;
+    let (m0, s0) = stats(&ys);
+    let res: Vec<f64> = xs.iter().zip(&ys).map(|(x, y)| y - lam * x).collect();
+    let (m1, s1) = stats(&res);
+    println!(
+        "  lean: {} moving obs, offset/extent mean {m0:+.4} sd {s0:.4}; lambda {lam:+.4}; after removing lambda*sin: mean {m1:+.4} sd {s1:.4} (n {n})",
+        xs.len()
+    );
+    // Track purity: share of a track's person observations on its majority id.
+    let mut by_track: BTreeMap<u32, BTreeMap<u32, usize>> = BTreeMap::new();
+    for e in &events {
+        if let Some((Kind::Person, id, ..)) = e.truth {
+            *by_track.entry(e.track).or_default().entry(id).or_default() += 1;
+        }
+    }
+    let (mut maj, mut tot) = (0, 0);
+    for m in by_track.values() {
+        maj += m.values().max().copied().unwrap_or(0);
+        tot += m.values().sum::<usize>();
+    }
+    let people: std::collections::BTreeSet<u32> = events
+        .iter()
+        .filter_map(|e| match e.truth {
+            Some((Kind::Person, id, ..)) => Some(id),
+            _ => None,
+        })
+        .collect();
+    println!(
+        "tracks {} covering {} people, purity {:.1} %",
+        by_track.len(),
+        people.len(),
+        100.0 * maj as f64 / tot.max(1) as f64
+    );
+    // The pipeline's own final heights against the truth of each track's
+    // majority person.
+    {
+        let heights: BTreeMap<u32, f64> = sim_heights(&sim);
+        let mut errs = Vec::new();
+        for hr in &p.final_heights {
+            let Some(m) = by_track.get(&hr.track_id) else {
+                continue;
+            };
+            let Some((&pid, _)) = m.iter().max_by_key(|x| x.1) else {
+                continue;
+            };
+            if let Some(t) = heights.get(&pid) {
+                errs.push((f64::from(hr.height_m) - t, pid));
+            }
+        }
+        let mut abs: Vec<f64> = errs.iter().map(|e| e.0.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let ids: std::collections::BTreeSet<u32> = errs.iter().map(|e| e.1).collect();
+        let signed = errs.iter().map(|e| e.0).sum::<f64>() / errs.len().max(1) as f64;
+        println!(
+            "  pipeline final heights: {} records of {} people; |err| median {:.3} p90 {:.3} m, mean signed {:+.3} m (scale: {})",
+            errs.len(),
+            ids.len(),
+            stature::calibrate::eval::quantile(&abs, 0.5),
+            stature::calibrate::eval::quantile(&abs, 0.9),
+            signed,
+            if cfg.calibrate.camera_height_m > 0.0 { "camera height" } else { "prior" }
+        );
+    }
+    let ccfg = CalibrateConfig {
+        camera_height_m: st.camera_height_m,
+        ..Default::default()
+    };
+    let live: Vec<(u64, u32, HeadFoot)> =
+        events.iter().map(|e| (e.frame, e.track, e.live)).collect();
+    println!("  live points        {}", calibrate(&live, &ccfg, w, h));
+    let truth: Vec<(u64, u32, HeadFoot)> = events
+        .iter()
+        .filter_map(|e| match e.truth {
+            Some((Kind::Person, _, t, _)) => Some((e.frame, e.track, t)),
+            _ => None,
+        })
+        .collect();
+    println!("  true points, same  {}", calibrate(&truth, &ccfg, w, h));
+    let (_, shx) = stats(&hx);
+    let (_, shy) = stats(&hy);
+    let (_, sfx) = stats(&fx);
+    let (_, sfy) = stats(&fy);
+    let mut rng = Rng::new(7);
+    let noisy: Vec<(u64, u32, HeadFoot)> = truth
+        .iter()
+        .map(|(f, id, t)| {
+            let mut o = *t;
+            o.head[0] += shx * rng.normal();
+            o.head[1] += shy * rng.normal();
+            o.foot[0] += sfx * rng.normal();
+            o.foot[1] += sfy * rng.normal();
+            (*f, *id, o)
+        })
+        .collect();
+    println!("  true + live noise  {}", calibrate(&noisy, &ccfg, w, h));
+    if std::env::var("KAPPA").is_ok() {
+        let tg = stature::calibrate::geometry::ViewGeometry::of_camera(&cam);
+        for kappa in [0.0, 0.03, 0.06, 0.09, 0.12] {
+            let v: Vec<(u64, u32, HeadFoot)> = live
+                .iter()
+                .map(|(f, id, o)| {
+                    let mut o = *o;
+                    if let (Some(r), Some(g)) = (tg.height_ratio(&o), cam.ground_point(o.foot)) {
+                        let rho = (g[0] * g[0] + g[1] * g[1]).sqrt();
+                        let k = 1.0 + kappa * r * cam.height / rho;
+                        if let Some(p) = cam.project([g[0] * k, g[1] * k, 0.0]) {
+                            o.foot = p;
+                        }
+                    }
+                    (*f, *id, o)
+                })
+                .collect();
+            println!(
+                "  oracle foot kappa {kappa:.2} {}",
+                calibrate(&v, &ccfg, w, h)
+            );
+        }
+    }
+    if std::env::var("SWAP").is_ok() {
+        let swap = |f: &dyn Fn(&HeadFoot, &HeadFoot) -> HeadFoot| -> Vec<(u64, u32, HeadFoot)> {
+            events
+                .iter()
+                .filter_map(|e| match e.truth {
+                    Some((Kind::Person, _, t, _)) => Some((e.frame, e.track, f(&e.live, &t))),
+                    _ => None,
+                })
+                .collect()
+        };
+        let v = swap(&|l, t| HeadFoot {
+            head: l.head,
+            foot: t.foot,
+        });
+        println!("  live head, true foot {}", calibrate(&v, &ccfg, w, h));
+        let v = swap(&|l, t| HeadFoot {
+            head: t.head,
+            foot: l.foot,
+        });
+        println!("  true head, live foot {}", calibrate(&v, &ccfg, w, h));
+        let v = swap(&|l, t| HeadFoot {
+            head: [t.head[0], l.head[1]],
+            foot: [t.foot[0], l.foot[1]],
+        });
+        println!("  true x, live y       {}", calibrate(&v, &ccfg, w, h));
+        let v = swap(&|l, t| HeadFoot {
+            head: [l.head[0], t.head[1]],
+            foot: [l.foot[0], t.foot[1]],
+        });
+        println!("  live x, true y       {}", calibrate(&v, &ccfg, w, h));
+    }
+}
+
+fn main() {
+    let mut scene = "plaza".to_string();
+    let mut seeds = vec![1u64];
+    let mut frames = None;
+    let mut extra = String::new();
+    let mut toml = String::new();
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--scene" => scene = args.next().expect("--scene NAME"),
+            "--seeds" => {
+                seeds = args
+                    .next()
+                    .expect("--seeds 1,2")
+                    .split(',')
+                    .map(|s| s.parse().expect("seed"))
+                    .collect()
+            }
+            "--toml" => {
+                toml.push_str(&args.next().expect("--toml 'section.key = value'"));
+                toml.push('\n');
+            }
+            "--query" => extra = args.next().expect("--query K=V&..."),
+            "--frames" => frames = Some(args.next().expect("N").parse().expect("N")),
+            other => panic!("unknown option {other}"),
+        }
+    }
+    for s in seeds {
+        if scene == "all" {
+            for spec in stature::source::sim::scene::scenes() {
+                run(spec.name, s, frames, &extra, &toml);
+            }
+        } else {
+            run(&scene, s, frames, &extra, &toml);
+        }
+    }
+}
