@@ -63,7 +63,19 @@ fn report_file_on_a_full_disk_drops_with_counts_and_the_run_goes_on() {
         summary.contains(&expected),
         "{summary} (expected {expected})"
     );
-    assert!(bye["dropped"].as_u64().unwrap() >= records.len() as u64 - 3);
+    // bye counts what was lost before it was made: everything but the
+    // final burst (final calibration and heights, the last status, bye
+    // itself), which the I/O thread may not have reached yet.
+    let burst = records
+        .iter()
+        .filter(|r| r["final"] == true || r["type"] == "status" || r["type"] == "bye")
+        .count() as u64;
+    let dropped = bye["dropped"].as_u64().unwrap();
+    assert!(
+        dropped + burst >= records.len() as u64,
+        "bye counted {dropped} of {} lost records",
+        records.len()
+    );
 }
 
 /// A tiny deterministic sequence for kill delays.
