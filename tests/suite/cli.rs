@@ -329,17 +329,6 @@ fn sigint_stops_cleanly_with_bye() {
     signal_stops_cleanly_with_bye("-INT");
 }
 
-/// Decodes a PNG written by stature: size and RGB bytes.
-fn read_png(path: &std::path::Path) -> ((i64, i64), Vec<u8>) {
-    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
-    let mut r = dec.read_info().unwrap();
-    let mut buf = vec![0; r.output_buffer_size()];
-    let info = r.next_frame(&mut buf).unwrap();
-    assert_eq!(info.color_type, png::ColorType::Rgb);
-    buf.truncate(info.buffer_size());
-    ((i64::from(info.width), i64::from(info.height)), buf)
-}
-
 #[test]
 fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
     let path = tmp("run-snapshot.png");
@@ -360,7 +349,7 @@ fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
         .find(|r| r["type"] == "calibration" && r["final"] == true)
         .expect("a final calibration within 300 frames of the plaza");
     let horizon: [f32; 3] = serde_json::from_value(cal["horizon"].clone()).unwrap();
-    let ((w, h), rgb) = read_png(&path);
+    let ((w, h), rgb) = crate::snapshot::read_png(&path);
     assert_eq!((w, h), (640, 480));
     let pixel = |x: i64, y: i64| {
         ((0..w).contains(&x) && (0..h).contains(&y)).then(|| {
@@ -434,7 +423,7 @@ fn snapshot_command_stops_once_the_calibration_is_confident() {
         "{err}"
     );
     assert!(bye["frames"].as_u64().unwrap() < 400);
-    assert_eq!(read_png(&path).0, (640, 480));
+    assert_eq!(crate::snapshot::read_png(&path).0, (640, 480));
     // The output path is required.
     let out = run(&["snapshot", "--source", "sim:plaza?seed=1&frames=10"]);
     assert_eq!(out.status.code(), Some(2));

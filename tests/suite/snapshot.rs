@@ -81,6 +81,17 @@ pub fn assert_horizon_drawn(
     );
 }
 
+/// Decodes a PNG written by stature: size and RGB bytes.
+pub fn read_png(path: &std::path::Path) -> ((i64, i64), Vec<u8>) {
+    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut r = dec.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size()];
+    let info = r.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    buf.truncate(info.buffer_size());
+    ((i64::from(info.width), i64::from(info.height)), buf)
+}
+
 #[test]
 fn sim_run_snapshot_shows_the_estimated_horizon_and_every_live_track() {
     let frames = 300;
@@ -163,11 +174,8 @@ fn sim_run_snapshot_shows_the_estimated_horizon_and_every_live_track() {
     );
 
     // The file is that image.
-    let dec = png::Decoder::new(std::fs::File::open(&path).unwrap());
-    let mut r = dec.read_info().unwrap();
-    let mut buf = vec![0; r.output_buffer_size()];
-    let info = r.next_frame(&mut buf).unwrap();
-    assert_eq!((info.width, info.height), (640, 480));
-    assert!(&buf[..info.buffer_size()] == c.rgb());
+    let (size, bytes) = read_png(&path);
+    assert_eq!(size, (640, 480));
+    assert!(bytes == c.rgb());
     std::fs::remove_dir_all(&dir).ok();
 }
