@@ -175,6 +175,8 @@ pub struct RunConfig {
     pub frames: u64,
     /// Calibration state file (empty = none).
     pub state: String,
+    /// Installer snapshot PNG written at the end of the run (empty = none).
+    pub snapshot: String,
 }
 
 impl Default for RunConfig {
@@ -182,6 +184,7 @@ impl Default for RunConfig {
         RunConfig {
             frames: 0,
             state: String::new(),
+            snapshot: String::new(),
         }
     }
 }

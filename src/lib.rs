@@ -23,6 +23,8 @@
 //! * [`measure`]: per-person heights with robust correction.
 //! * [`report`]: schema v1 records and the sinks that carry them.
 //! * [`run`]: the loop that owns every buffer and calls the stages in order.
+//! * [`snapshot`]: the installer snapshot, a PNG of a frame with the
+//!   calibration and the tracks drawn over it.
 //!
 //! After start-up the loop allocates nothing: every buffer is sized from the
 //! [`config::Config`] when the [`run::Pipeline`] is built.
@@ -53,6 +55,8 @@ pub mod measure;
 pub mod report;
 
 pub mod run;
+
+pub mod snapshot;
 
 /// Process exit codes, shared by the binary and documented in the README.
 pub mod exit {

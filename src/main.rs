@@ -26,7 +26,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run the pipeline on a source and stream reports.
-    Run(RunArgs),
+    Run(RunCmdArgs),
+    /// Run the pipeline until calibrated (or --frames N) and write the installer snapshot PNG.
+    Snapshot(SnapshotArgs),
     /// Run the full pipeline on the built-in demo scene and compare with the truth.
     Demo(DemoArgs),
     /// Print or check configuration files.
@@ -56,6 +58,25 @@ impl Verbosity {
             _ => log::LevelFilter::Trace,
         }
     }
+}
+
+#[derive(Args)]
+struct RunCmdArgs {
+    #[command(flatten)]
+    run: RunArgs,
+    /// Installer snapshot written when the run ends: the last frame with the
+    /// horizon, the vertical vanishing direction, the tracks and the calibration.
+    #[arg(long, value_name = "PATH.png")]
+    snapshot: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct SnapshotArgs {
+    /// Where to write the PNG.
+    #[arg(long, value_name = "PATH.png")]
+    out: PathBuf,
+    #[command(flatten)]
+    run: RunArgs,
 }
 
 #[derive(Args)]
@@ -227,7 +248,8 @@ fn main() {
             verbosity: Verbosity::default(),
         }),
         Some(Command::Demo(a)) => demo(a),
-        Some(Command::Run(a)) => run_cmd(a),
+        Some(Command::Run(a)) => run_cmd(a.run, a.snapshot, false),
+        Some(Command::Snapshot(a)) => run_cmd(a.run, Some(a.out), true),
         Some(Command::Config(a)) => config_cmd(a),
         Some(Command::Train(a)) => train_cmd(a),
         Some(Command::Sim(a)) => sim_cmd(a),
@@ -281,24 +303,29 @@ fn resolve_config(a: &RunArgs) -> Result<Config, ConfigError> {
     Ok(cfg)
 }
 
-fn run_cmd(a: RunArgs) -> i32 {
+/// `stature run`, and `stature snapshot` (`until_confident`: stop once
+/// the calibration is confident enough to measure).
+fn run_cmd(a: RunArgs, snapshot: Option<PathBuf>, until_confident: bool) -> i32 {
     stature::logger::init(a.verbosity.level());
-    let cfg = match resolve_config(&a) {
+    let mut cfg = match resolve_config(&a) {
         Ok(c) => c,
         Err(e) => {
             log::error!("{e}");
             return exit::BAD_INPUT;
         }
     };
-    run_pipeline(&cfg)
+    if let Some(p) = snapshot {
+        cfg.run.snapshot = p.display().to_string();
+    }
+    run_pipeline(&cfg, until_confident)
 }
 
-fn run_pipeline(cfg: &Config) -> i32 {
+fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
     if !cfg.board.name.is_empty() {
         log::info!("board profile {}", cfg.board.name);
     }
     match source::open(&cfg.source.uri) {
-        Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new())),
+        Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new()), until_confident),
         Err(e) => {
             log::error!("{e}");
             e.exit_code()
@@ -312,7 +339,25 @@ type Outcome = (
     Vec<stature::report::record::Height>,
 );
 
-fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Outcome) -> i32 {
+fn run_source(
+    cfg: &Config,
+    src: &mut dyn source::FrameSource,
+    outcome: &mut Outcome,
+    until_confident: bool,
+) -> i32 {
+    let info = src.info().clone();
+    // The snapshot path is checked before anything else starts.
+    let mut snapshot = None;
+    if !cfg.run.snapshot.is_empty() {
+        let path = std::path::Path::new(&cfg.run.snapshot);
+        match stature::snapshot::Snapshot::new(cfg, &info, path, until_confident) {
+            Ok(s) => snapshot = Some(s),
+            Err(e) => {
+                log::error!("{e}");
+                return exit::UNAVAILABLE;
+            }
+        }
+    }
     let mut sinks = Vec::new();
     for spec in &cfg.report.sinks {
         // Validated already; parse cannot fail here.
@@ -331,7 +376,6 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
             }
         }
     }
-    let info = src.info().clone();
     log::info!(
         "source {} ({}x{} at {:.2} fps)",
         info.description,
@@ -353,7 +397,10 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
         stop: &stop,
         allocations: stature::alloc_count::allocations,
     };
-    let mut summary = run::run(cfg, src, &mut reporter, &opts);
+    let mut summary = match snapshot.as_mut() {
+        Some(s) => run::run_observed(cfg, src, &mut reporter, &opts, s),
+        None => run::run(cfg, src, &mut reporter, &opts),
+    };
     *outcome = (
         summary.calibration.take(),
         core::mem::take(&mut summary.heights),
@@ -377,6 +424,8 @@ fn run_source(cfg: &Config, src: &mut dyn source::FrameSource, outcome: &mut Out
             log::error!("{e}");
             e.exit_code()
         }
+        // (The snapshot's own error was logged when it failed.)
+        None if snapshot.is_some_and(|s| matches!(s.result, Some(Err(_)))) => exit::UNAVAILABLE,
         None => exit::OK,
     }
 }
@@ -409,7 +458,7 @@ fn demo(a: DemoArgs) -> i32 {
         done: 0,
     };
     let mut outcome = (None, Vec::new());
-    let code = run_source(&cfg, &mut progress, &mut outcome);
+    let code = run_source(&cfg, &mut progress, &mut outcome, false);
     let sim = progress.inner;
     let cast = sim.cast();
     // Each final height is matched to the person whose true foot is nearest

@@ -145,6 +145,7 @@ impl Pipeline {
                 continue;
             };
             t.last_report = frame;
+            t.reported = Some((c.height as f32, c.samples));
             let b = t.bbox;
             let h = Height {
                 // A final height is dated to the last frame the person was
@@ -236,7 +237,28 @@ pub enum StopReason {
     Signal,
     /// The source failed (bad input mid-stream).
     SourceError,
+    /// The [`Observer`] asked for a stop (`stature snapshot` once calibrated).
+    Observer,
 }
+
+/// Watches the loop from outside (the installer snapshot): told after every
+/// processed frame and once at the very end, before the pipeline is dropped.
+pub trait Observer {
+    /// After a frame was processed and its records queued; `true` stops
+    /// the run there, as the frame limit does. Runs in the loop: it must
+    /// not allocate.
+    fn frame(&mut self, _p: &Pipeline) -> bool {
+        false
+    }
+    /// After the final records (`bye` included): the final calibration,
+    /// and the tracks as the last processed frame left them (all marked
+    /// ended, with their final heights). After a source error
+    /// [`Pipeline::frame`] may hold part of the frame that failed.
+    fn end(&mut self, _p: &Pipeline, _stopped_by: StopReason) {}
+}
+
+/// Observes nothing.
+impl Observer for () {}
 
 /// Loop options that are not part of the pipeline.
 pub struct LoopOptions<'a> {
@@ -258,6 +280,17 @@ pub fn run(
     source: &mut dyn FrameSource,
     reporter: &mut Reporter,
     opts: &LoopOptions<'_>,
+) -> Summary {
+    run_observed(cfg, source, reporter, opts, &mut ())
+}
+
+/// [`run`], telling `observer` about every frame and the end.
+pub fn run_observed(
+    cfg: &Config,
+    source: &mut dyn FrameSource,
+    reporter: &mut Reporter,
+    opts: &LoopOptions<'_>,
+    observer: &mut dyn Observer,
 ) -> Summary {
     let info = source.info().clone();
     let mut p = Pipeline::new(cfg, &info);
@@ -322,6 +355,9 @@ pub fn run(
                 if p.frames % status_every == 0 {
                     status(&p, source.state(), reporter, &mut last_status);
                 }
+                if observer.frame(&p) {
+                    break StopReason::Observer;
+                }
             }
             Next::Waiting => {
                 if last_wait_status.elapsed().as_secs_f64() >= opts.status_interval_s {
@@ -342,6 +378,7 @@ pub fn run(
             dropped,
         }));
     }
+    observer.end(&p, stopped_by);
     Summary {
         frames: p.frames,
         stopped_by,

@@ -101,7 +101,8 @@ fn steady_state_loop_allocates_nothing() {
 }
 
 /// The whole `run` loop, status records included, reports 0 allocations
-/// after start-up through its own `allocations` field.
+/// after start-up through its own `allocations` field, with the installer
+/// snapshot watching the loop (it draws and writes only after it).
 fn status_records_report_zero_allocations() {
     let size = Size {
         width: 160,
@@ -129,10 +130,13 @@ fn status_records_report_zero_allocations() {
         stop: &stop,
         allocations,
     };
-    let summary = run::run(&cfg, &mut src, &mut reporter, &opts);
+    let snap_path = dir.join("snapshot.png");
+    let mut snap = stature::snapshot::Snapshot::new(&cfg, src.info(), &snap_path, false).unwrap();
+    let summary = run::run_observed(&cfg, &mut src, &mut reporter, &opts, &mut snap);
     reporter.finish(std::time::Duration::from_secs(5));
     io.join().unwrap();
     assert_eq!(summary.frames, 400);
+    assert!(matches!(snap.result, Some(Ok(()))) && snap_path.exists());
     let mut bytes = std::fs::read(&out).unwrap();
     let mut statuses = Vec::new();
     for frame in bytes.split_mut(|&b| b == 0).filter(|f| !f.is_empty()) {

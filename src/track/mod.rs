@@ -157,6 +157,9 @@ pub struct Track {
     pub ended: bool,
     /// Frame of its last height record.
     pub last_report: u64,
+    /// Height (metres) and samples of its last height record, if any
+    /// (set by the loop; the installer snapshot shows it).
+    pub reported: Option<(f32, u32)>,
     extent: f32,
     rejects: u8,
     prev_snap: ([f32; 2], u64),
@@ -334,6 +337,7 @@ impl Tracker {
                 merged: false,
                 ended: false,
                 last_report: frame_no,
+                reported: None,
                 extent: 0.0,
                 rejects: 0,
                 prev_snap: ([0.0; 2], frame_no),

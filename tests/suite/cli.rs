@@ -328,3 +328,104 @@ fn sigterm_stops_cleanly_with_bye() {
 fn sigint_stops_cleanly_with_bye() {
     signal_stops_cleanly_with_bye("-INT");
 }
+
+#[test]
+fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
+    let path = tmp("run-snapshot.png");
+    let _ = std::fs::remove_file(&path);
+    let out = run(&[
+        "run",
+        "--source",
+        "sim:plaza?seed=1&frames=300",
+        "--snapshot",
+        &path.display().to_string(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("snapshot written to"), "{err}");
+    let recs = records(&out.stdout);
+    let cal = recs
+        .iter()
+        .find(|r| r["type"] == "calibration" && r["final"] == true)
+        .expect("a final calibration within 300 frames of the plaza");
+    let horizon: [f32; 3] = serde_json::from_value(cal["horizon"].clone()).unwrap();
+    let ((w, h), rgb) = crate::snapshot::read_png(&path);
+    assert_eq!((w, h), (640, 480));
+    let pixel = |x: i64, y: i64| {
+        ((0..w).contains(&x) && (0..h).contains(&y)).then(|| {
+            let i = ((y * w + x) * 3) as usize;
+            [rgb[i], rgb[i + 1], rgb[i + 2]]
+        })
+    };
+    crate::snapshot::assert_horizon_drawn(&pixel, (w, h), horizon);
+    assert!(!tmp("run-snapshot.png.tmp").exists());
+}
+
+#[test]
+fn unwritable_snapshot_path_is_exit_3_before_the_run_starts() {
+    let clip = write_clip("snap.y4m", 3);
+    let dir = tmp("");
+    for (path, want) in [
+        ("/nonexistent-dir/x.png".to_string(), "No such file"),
+        (dir.display().to_string(), "it is a directory"),
+    ] {
+        let out = run(&[
+            "run",
+            "--source",
+            &format!("y4m:{}", clip.display()),
+            "--snapshot",
+            &path,
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{path}: {err}");
+        assert!(
+            err.contains(&format!("cannot write snapshot {path}")) && err.contains(want),
+            "{path}: {err}"
+        );
+        assert_eq!(
+            err.lines().filter(|l| l.contains("ERROR")).count(),
+            1,
+            "{err}"
+        );
+        assert!(out.stdout.is_empty(), "the run never started: no hello");
+    }
+}
+
+#[test]
+fn snapshot_command_stops_once_the_calibration_is_confident() {
+    // With a threshold of 0 the first estimate is confident enough.
+    let cfg = tmp("snap.toml");
+    std::fs::write(&cfg, "[measure]\nmin_confidence = 0.0\n").unwrap();
+    let path = tmp("cmd-snapshot.png");
+    let _ = std::fs::remove_file(&path);
+    let out = run(&[
+        "snapshot",
+        "--config",
+        &cfg.display().to_string(),
+        "--source",
+        "sim:plaza?seed=1&frames=400",
+        "--out",
+        &path.display().to_string(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let recs = records(&out.stdout);
+    let first = recs
+        .iter()
+        .find(|r| r["type"] == "calibration")
+        .expect("a calibration");
+    let bye = recs.last().unwrap();
+    assert_eq!(bye["type"], "bye");
+    // Stopped right after the frame of the first estimate.
+    assert_eq!(
+        bye["frames"].as_u64(),
+        first["frame"].as_u64().map(|f| f + 1),
+        "{err}"
+    );
+    assert!(bye["frames"].as_u64().unwrap() < 400);
+    assert_eq!(crate::snapshot::read_png(&path).0, (640, 480));
+    // The output path is required.
+    let out = run(&["snapshot", "--source", "sim:plaza?seed=1&frames=10"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--out"));
+}

@@ -37,3 +37,4 @@ mod geometry_props;
 mod mqtt;
 mod sim_alloc;
 mod sim_geometry;
+mod snapshot;

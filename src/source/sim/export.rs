@@ -85,20 +85,28 @@ pub fn export(
 
 /// Converts a frame to 8-bit RGB (BT.601, limited range), `width*height*3` bytes.
 pub fn to_rgb(frame: &Frame) -> Vec<u8> {
+    let mut rgb = vec![0; frame.size().pixels() * 3];
+    rgb_into(frame, &mut rgb);
+    rgb
+}
+
+/// [`to_rgb`] into a caller-owned buffer of at least `width*height*3` bytes
+/// (no allocation; the installer snapshot reuses one buffer).
+pub fn rgb_into(frame: &Frame, rgb: &mut [u8]) {
     let size = frame.size();
     let cw = size.chroma().width;
-    let mut rgb = Vec::with_capacity(size.pixels() * 3);
-    for y in 0..size.height {
-        for x in 0..size.width {
-            let l = 1.164 * (frame.y[y * size.width + x] as f64 - 16.0);
-            let ci = (y / 2) * cw + x / 2;
-            let (u, v) = (frame.u[ci] as f64 - 128.0, frame.v[ci] as f64 - 128.0);
-            for c in [l + 1.596 * v, l - 0.392 * u - 0.813 * v, l + 2.017 * u] {
-                rgb.push(c.round().clamp(0.0, 255.0) as u8);
-            }
+    for (i, px) in rgb.chunks_exact_mut(3).take(size.pixels()).enumerate() {
+        let (y, x) = (i / size.width, i % size.width);
+        let l = 1.164 * (frame.y[i] as f64 - 16.0);
+        let ci = (y / 2) * cw + x / 2;
+        let (u, v) = (frame.u[ci] as f64 - 128.0, frame.v[ci] as f64 - 128.0);
+        for (out, c) in px
+            .iter_mut()
+            .zip([l + 1.596 * v, l - 0.392 * u - 0.813 * v, l + 2.017 * u])
+        {
+            *out = c.round().clamp(0.0, 255.0) as u8;
         }
     }
-    rgb
 }
 
 /// Sets one pixel of an RGB image (ignored outside it).
