@@ -234,7 +234,7 @@ fn panel_lines(o: &Overlay<'_>, font: &MonoFont<'_>, width: usize) -> Lines {
                 g.v[0], g.v[1]
             ));
             add(format_args!(
-                "from {} head-foot lines, {} pairs",
+                "from {} head-foot lines, {} tracked anchors",
                 e.inliers, e.horizon_inliers
             ));
             if let Some(d) = e.degeneracy {

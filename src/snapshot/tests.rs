@@ -231,7 +231,7 @@ fn panel_states_the_estimate() {
         "roll -2.0°",
         "camera height 4.20 m (people avg 1.70 m)",
         "confidence 0.80: measuring (>= 0.30)",
-        "from 120 head-foot lines, 40 pairs",
+        "from 120 head-foot lines, 40 tracked anchors",
     ] {
         assert!(all.contains(want), "{want:?} missing from\n{all}");
     }
