@@ -98,12 +98,63 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     let cfg = Config::from_toml(toml).expect("--toml");
     let info = sim.info().clone();
     let mut p = Pipeline::new(&cfg, &info);
+    let (w_px, h_px) = (info.size.width as f64, info.size.height as f64);
     let (mut reporter, rx, _) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
     let drain = std::thread::spawn(move || rx.iter().count());
     let mut events: Vec<Event> = Vec::new();
+    // Where isolated, fully visible walkers are lost: [frames, with a
+    // region of IoU >= 0.5, that region called single, a track snapped to
+    // it this frame (sample given), a track on it but merged/coasting].
+    let mut funnel = [0u64; 5];
     for k in 0..sim.frames() {
         sim.render(k, &mut p.frame);
         p.process(&mut reporter);
+        {
+            let (set, verdicts) = p.regions();
+            let truth = sim.truth();
+            for o in truth {
+                if o.kind != Kind::Person || o.visible_fraction < 0.98 || !o.walking {
+                    continue;
+                }
+                let ob = o.bbox.map(f64::from);
+                let alone = truth.iter().all(|q| {
+                    q.id == o.id || q.visible_px < 50 || iou(ob, q.bbox.map(f64::from)) <= 0.0
+                });
+                let inside = ob[0] > 2.0 && ob[1] > 2.0 && ob[2] < w_px - 3.0 && ob[3] < h_px - 3.0;
+                if !alone || !inside {
+                    continue;
+                }
+                funnel[0] += 1;
+                let best = set
+                    .regions()
+                    .iter()
+                    .enumerate()
+                    .map(|(j, r)| {
+                        let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
+                        (iou(ob, rb), j)
+                    })
+                    .max_by(|a, b| a.0.total_cmp(&b.0));
+                let Some((v, j)) = best else { continue };
+                if v < 0.5 {
+                    continue;
+                }
+                funnel[1] += 1;
+                if verdicts.get(j).is_some_and(|x| x.single_human) {
+                    funnel[2] += 1;
+                }
+                let r = &set.regions()[j];
+                let on = p.tracker().tracks().iter().find(|t| {
+                    let tb = [t.bbox.x0, t.bbox.y0, t.bbox.x1, t.bbox.y1].map(f64::from);
+                    let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
+                    iou(tb, rb) > 0.5
+                });
+                match on {
+                    Some(t) if t.fresh.is_some() => funnel[3] += 1,
+                    Some(_) => funnel[4] += 1,
+                    None => {}
+                }
+            }
+        }
         for t in p.tracker().tracks() {
             let Some(hf) = t.fresh else { continue };
             let tb = [
@@ -141,6 +192,10 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     drop(reporter);
     drain.join().unwrap();
 
+    println!(
+        "  isolated walkers: {} person-frames, region IoU>=0.5 {}, called single {}, sampled by a track {}, track on it without a sample {}",
+        funnel[0], funnel[1], funnel[2], funnel[3], funnel[4]
+    );
     let (w, h) = (st.width, st.height);
     let (mut person, mut dog, mut car, mut none) = (0, 0, 0, 0);
     let (mut hx, mut hy, mut fx, mut fy, mut ext, mut ang) =

@@ -131,6 +131,13 @@ impl Pipeline {
         &self.tracker
     }
 
+    /// This frame's regions and the classifier's verdict on each (the
+    /// verdicts may be fewer: regions beyond `classify.max_regions` are
+    /// not classified). For diagnostics and tests.
+    pub fn regions(&self) -> (&RegionSet, &[Verdict]) {
+        (&self.regions, &self.verdicts)
+    }
+
     /// Heights of live and just-ended tracks: a record for every track
     /// due (or every one with `all`), final for ended tracks.
     fn heights(&mut self, reporter: &mut Reporter, frame: u64, all: bool) {

@@ -34,6 +34,7 @@ fn estimate(tilt_deg: f64, roll_deg: f64) -> Estimate {
         inliers: 120,
         horizon_inliers: 40,
         focal_rel_sigma: 0.01,
+        lean: 0.0,
         confidence: 0.8,
         degeneracy: None,
         version: 1,

@@ -41,6 +41,9 @@ pub const MAX_PARTICLES: usize = 64;
 /// Head/foot samples kept per track (the newest).
 pub const RING: usize = 128;
 
+/// No track owns the region.
+const NO_OWNER: u8 = u8::MAX;
+
 /// `[track]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -64,6 +67,13 @@ pub struct TrackConfig {
     /// Head/foot extent change between samples that marks a cut or a
     /// merge (fraction); such samples are rejected.
     pub max_extent_change: f64,
+    /// A track already following a person keeps snapping to the region it
+    /// alone picks when the SVM score is at least this (below the
+    /// classifier's own threshold) and the region's box is the size of
+    /// the track's last one: a verdict that flickers on a person walking
+    /// alone does not break the track. Births still need a single-person
+    /// verdict.
+    pub keep_score: f64,
     /// Head and foot points on the silhouette's fitted body axis ([`axis`]):
     /// the rows of eq. 5, the columns of the axis. `false`: eq. 5 as the
     /// paper has it (top-most pixel, mean of the bottom-most ten).
@@ -84,6 +94,7 @@ impl Default for TrackConfig {
             min_overlap: 0.3,
             position_noise: 0.05,
             max_extent_change: 0.15,
+            keep_score: -0.5,
             axis_points: true,
             seed: 3,
         }
@@ -106,6 +117,7 @@ impl TrackConfig {
             self.max_extent_change,
             0.01..=1.0,
         )?;
+        check_range("track.keep_score", self.keep_score, -10.0..=10.0)?;
         if self.hue_bins * self.sat_bins + self.value_bins > MAX_BINS {
             return Err(ConfigError::new(
                 "track.hue_bins",
@@ -161,6 +173,10 @@ pub struct Track {
     /// (set by the loop; the installer snapshot shows it).
     pub reported: Option<(f32, u32)>,
     extent: f32,
+    /// Width and height of the last region it snapped to, pixels.
+    snapped: [f32; 2],
+    /// Regions it snapped to (saturating).
+    snaps: u32,
     rejects: u8,
     prev_snap: ([f32; 2], u64),
 }
@@ -179,8 +195,10 @@ pub struct Tracker {
     tracks: Box<heapless::Vec<Track, MAX_TRACKS>>,
     /// Tracks each region was picked by this frame.
     claims: Vec<u8>,
-    /// Region each track picked this frame.
-    picks: heapless::Vec<Option<u16>, MAX_TRACKS>,
+    /// Track that owns each region this frame ([`NO_OWNER`]: none).
+    owner: Vec<u8>,
+    /// Region each track picked this frame, with its eq. 4 overlap.
+    picks: heapless::Vec<Option<(u16, f32)>, MAX_TRACKS>,
     next_id: u32,
     rng: Rng,
     scratch: Hist,
@@ -196,6 +214,7 @@ impl Tracker {
             table: ColourTable::new(cfg.hue_bins, cfg.sat_bins, cfg.value_bins),
             tracks: Box::default(),
             claims: vec![0; regions],
+            owner: vec![NO_OWNER; regions],
             picks: heapless::Vec::new(),
             next_id: 1,
             rng: Rng::new(cfg.seed),
@@ -247,7 +266,9 @@ impl Tracker {
         let regs = regions.regions();
         let nreg = regs.len().min(self.claims.len());
         self.claims[..nreg].fill(0);
+        self.owner[..nreg].fill(NO_OWNER);
         self.picks.clear();
+        let single = |j: usize| verdicts.get(j).is_some_and(|v| v.single_human);
         // 1. Particle filter, then eq. 4 against every region.
         for t in self.tracks.iter_mut() {
             t.fresh = None;
@@ -276,18 +297,44 @@ impl Tracker {
             if let Some((_, j)) = best {
                 self.claims[j as usize] = self.claims[j as usize].saturating_add(1);
             }
-            let _ = self.picks.push(best.map(|b| b.1));
+            let _ = self.picks.push(best.map(|b| (b.1, b.0 as f32)));
+        }
+        // Owners: a region one track picked is that track's; a single
+        // person's region several tracks picked is one person, so it goes
+        // to the claimant overlapping it most (the oldest on a tie) and the
+        // others are duplicates of it; a group's region is nobody's (every
+        // claimant coasts through the merge).
+        for (i, pick) in self.picks.iter().enumerate() {
+            let Some((j, ov)) = *pick else { continue };
+            let j = j as usize;
+            let o = self.owner[j];
+            if self.claims[j] == 1 {
+                self.owner[j] = i as u8;
+            } else if single(j) {
+                let better = o == NO_OWNER
+                    || self.picks[o as usize].is_some_and(|(_, b)| ov > b)
+                    || (self.picks[o as usize].is_some_and(|(_, b)| ov == b)
+                        && self.tracks[i].id < self.tracks[o as usize].id);
+                if better {
+                    self.owner[j] = i as u8;
+                }
+            }
         }
         // 2. Snap, coast or end.
         let coast = (self.cfg.max_coast_s * fps.max(1.0)).ceil() as u64;
-        for (t, pick) in self.tracks.iter_mut().zip(self.picks.iter()) {
+        for (i, (t, pick)) in self.tracks.iter_mut().zip(self.picks.iter()).enumerate() {
             t.age = t.age.saturating_add(1);
-            match pick {
-                Some(j) => {
-                    let r = &regs[*j as usize];
-                    let single = verdicts.get(*j as usize).is_some_and(|v| v.single_human);
+            match *pick {
+                Some((j, _)) if self.owner[j as usize] == i as u8 => {
+                    let j = j as usize;
+                    let r = &regs[j];
                     t.last_support = frame_no;
-                    if self.claims[*j as usize] == 1 && single {
+                    let keep = verdicts
+                        .get(j)
+                        .is_some_and(|v| f64::from(v.score) >= self.cfg.keep_score)
+                        && t.snaps >= 3
+                        && same_size(t.snapped, &r.bbox);
+                    if single(j) || keep {
                         t.merged = false;
                         snap(
                             t,
@@ -303,6 +350,18 @@ impl Tracker {
                         t.merged = true;
                     }
                 }
+                // Another track owns this one person's region: this track
+                // is its duplicate (or lost it) and coasts without support.
+                Some((j, _)) if self.owner[j as usize] != NO_OWNER => {
+                    t.merged = true;
+                    if frame_no.saturating_sub(t.last_support) > coast {
+                        t.ended = true;
+                    }
+                }
+                Some(_) => {
+                    t.last_support = frame_no;
+                    t.merged = true;
+                }
                 None => {
                     if frame_no.saturating_sub(t.last_support) > coast {
                         t.ended = true;
@@ -313,8 +372,7 @@ impl Tracker {
         }
         // 3. Births from single-person regions nobody picked.
         for (j, r) in regs.iter().enumerate().take(nreg) {
-            let single = verdicts.get(j).is_some_and(|v| v.single_human);
-            if self.claims[j] != 0 || !single {
+            if self.claims[j] != 0 || !single(j) {
                 continue;
             }
             if self.tracks.len() >= self.cfg.capacity.min(MAX_TRACKS) {
@@ -339,6 +397,8 @@ impl Tracker {
                 last_report: frame_no,
                 reported: None,
                 extent: 0.0,
+                snapped: [0.0; 2],
+                snaps: 0,
                 rejects: 0,
                 prev_snap: ([0.0; 2], frame_no),
             };
@@ -379,6 +439,18 @@ impl Tracker {
             t.ended = true;
         }
     }
+}
+
+/// Whether box `b` is the size of a track's last snapped box `last`
+/// (width and height): what a person walking alone looks like from one
+/// frame to the next, and what a merge with a neighbour or a cut by an
+/// occluder is not.
+fn same_size(last: [f32; 2], b: &BBox) -> bool {
+    let (w, h) = (b.width() as f32, b.height() as f32);
+    last[0] > 0.0
+        && last[1] > 0.0
+        && (0.8..=1.25).contains(&(h / last[1]))
+        && (0.7..=1.45).contains(&(w / last[0]))
 }
 
 fn centre_of(b: &BBox) -> ([f32; 2], [f32; 2]) {
@@ -512,6 +584,8 @@ fn snap(
     t.centre = c;
     t.size = s;
     t.bbox = r.bbox;
+    t.snapped = s;
+    t.snaps = t.snaps.saturating_add(1);
     table.histogram(frame, c[0], c[1], s[0], s[1], h);
     for (m, x) in t.hist.iter_mut().zip(h.iter()) {
         *m = 0.9 * *m + 0.1 * x;

@@ -250,3 +250,106 @@ fn cut_and_border_samples_are_rejected() {
     assert!(accepted[13..25].iter().all(|&a| a));
     assert!(accepted[25..].iter().all(|&a| !a));
 }
+
+#[test]
+fn a_flickering_verdict_on_a_lone_walker_does_not_break_the_track() {
+    // Every third frame the classifier scores the walker just below its
+    // threshold: the track keeps sampling (keep_score), but a region of a
+    // very different size with the same low score does not snap it.
+    let mut t = Tracker::new(&TrackConfig::default(), 16);
+    let mut f = Frame::new(Size {
+        width: W,
+        height: H,
+    });
+    let mut set = RegionSet::with_capacity(16, 4096);
+    let mut sampled = 0;
+    for k in 0..30i32 {
+        let p = Person {
+            x0: 60 + 2 * k,
+            y0: 70,
+            w: 20,
+            h: 60,
+            yuv: RED,
+        };
+        paint(&mut f, &[p]);
+        set.clear();
+        region(&mut set, &[p]);
+        let low = k % 3 == 2;
+        let v = [Verdict {
+            score: if low { -0.3 } else { 1.0 },
+            single_human: !low,
+        }];
+        t.step(k as u64, 10.0, &f, &set, &v);
+        let tr = &t.tracks()[0];
+        if low && k > 3 {
+            assert!(!tr.merged && tr.fresh.is_some(), "frame {k}");
+        }
+        sampled += usize::from(tr.fresh.is_some());
+    }
+    assert!(sampled >= 28, "{sampled}");
+    // A twice-as-wide region (a neighbour joined) scored just as low is a merge.
+    let p = Person {
+        x0: 120,
+        y0: 70,
+        w: 44,
+        h: 60,
+        yuv: RED,
+    };
+    paint(&mut f, &[p]);
+    set.clear();
+    region(&mut set, &[p]);
+    let v = [Verdict {
+        score: -0.3,
+        single_human: false,
+    }];
+    t.step(30, 10.0, &f, &set, &v);
+    assert!(t.tracks()[0].merged && t.tracks()[0].fresh.is_none());
+}
+
+#[test]
+fn a_duplicate_track_on_one_person_ends() {
+    // A person whose region was split for two frames gets a second track;
+    // once the region is whole again (one person, both tracks pick it) the
+    // track overlapping it most keeps it and the duplicate coasts out.
+    let cfg = TrackConfig::default();
+    let mut t = Tracker::new(&cfg, 16);
+    let mut f = Frame::new(Size {
+        width: W,
+        height: H,
+    });
+    let mut set = RegionSet::with_capacity(16, 4096);
+    for k in 0..40i32 {
+        let p = Person {
+            x0: 80 + k,
+            y0: 60,
+            w: 24,
+            h: 70,
+            yuv: BLUE,
+        };
+        paint(&mut f, &[p]);
+        set.clear();
+        if (5..7).contains(&k) {
+            // Split into upper and lower halves, both called a person.
+            let top = Person { h: 34, ..p };
+            let bottom = Person {
+                y0: p.y0 + 36,
+                h: 34,
+                ..p
+            };
+            region(&mut set, &[top]);
+            region(&mut set, &[bottom]);
+        } else {
+            region(&mut set, &[p]);
+        }
+        let n = set.regions().len();
+        t.step(k as u64, 10.0, &f, &set, &single(n, true));
+    }
+    let live: Vec<_> = t.tracks().iter().filter(|t| !t.ended).collect();
+    assert_eq!(
+        live.len(),
+        1,
+        "{:?}",
+        t.tracks().iter().map(|t| t.id).collect::<Vec<_>>()
+    );
+    assert!(live[0].fresh.is_some() && !live[0].merged);
+}
