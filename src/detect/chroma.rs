@@ -37,8 +37,6 @@ pub struct ChromaBackground {
     shadow_threshold: u32,
     /// Steady learning rate, Q12 (≥ 1).
     rate_min: i32,
-    /// Factor on the rate at foreground samples, Q8.
-    fg_rate_q8: i32,
     /// Frames learned (saturating), for the `1/(t+1)` start-up rate.
     t: u32,
     /// Foreground chroma samples in the last frame.
@@ -47,14 +45,17 @@ pub struct ChromaBackground {
 
 impl ChromaBackground {
     /// A model for `width × height` luma frames. `history` sets the steady
-    /// rate `1/history`, `foreground_rate` scales it at foreground samples,
-    /// `threshold` is the L1 (Cb, Cr) distance in grey levels (0 = off:
-    /// [`Self::apply`] then does nothing and the model holds no samples).
+    /// rate `1/history`, at every sample: a slower rate at foreground
+    /// samples (as the GMM's `foreground_rate`) left chroma ghosts behind
+    /// people who stood at start-up (sim:low false regions 0.5 -> 2.2 per
+    /// frame); standing people are held by the luma GMM. `threshold` is the
+    /// L1 (Cb, Cr) distance in grey levels (0 = off: [`Self::apply`] then
+    /// does nothing and the model holds no samples); `shadow_threshold` the
+    /// smaller one of the soft mask (0: the same as `threshold`).
     pub fn new(
         width: usize,
         height: usize,
         history: u32,
-        foreground_rate: f64,
         threshold: u32,
         shadow_threshold: u32,
     ) -> Self {
@@ -74,7 +75,6 @@ impl ChromaBackground {
                 shadow_threshold.min(threshold)
             },
             rate_min: (RATE_ONE / history.max(1) as i32).max(1),
-            fg_rate_q8: (foreground_rate.clamp(0.0, 1.0) * 256.0).round() as i32,
             t: 0,
             foreground: 0,
         }
@@ -112,11 +112,23 @@ impl ChromaBackground {
             return;
         }
         let (cbp, crp) = (frame.cb(), frame.cr());
+        if self.t == 0 {
+            for cy in 0..self.ch {
+                let (srow_b, srow_r) = (cbp.row(cy), crp.row(cy));
+                let row = cy * self.cw..(cy + 1) * self.cw;
+                for (m, &x) in self.cb[row.clone()].iter_mut().zip(srow_b) {
+                    *m = u16::from(x) << 8;
+                }
+                for (m, &x) in self.cr[row].iter_mut().zip(srow_r) {
+                    *m = u16::from(x) << 8;
+                }
+            }
+            self.t = 1;
+            return;
+        }
         // α = 1/(t+1) at start-up, then 1/history; Q12 so that
         // (Δ in Q8.8, |Δ| < 2^16) × rate (≤ 2^12) < 2^28 fits an i32.
         let rate = (RATE_ONE / (self.t as i32).saturating_add(1)).max(self.rate_min);
-        let rate_fg = (rate * self.fg_rate_q8 >> 8).max(1);
-        let first = self.t == 0;
         let thr = (self.threshold as i32) << 8;
         let thr_soft = (self.shadow_threshold as i32) << 8;
         let height = mask.len() / words_per_row.max(1);
@@ -124,33 +136,30 @@ impl ChromaBackground {
             let (srow_b, srow_r) = (cbp.row(cy), crp.row(cy));
             let mrow_b = &mut self.cb[cy * self.cw..(cy + 1) * self.cw];
             let mrow_r = &mut self.cr[cy * self.cw..(cy + 1) * self.cw];
-            // 32 chroma samples make one 64-bit luma mask word.
+            // 32 chroma samples make one 64-bit luma mask word. Flags go to
+            // byte lanes first (vectorisable), then are packed.
             for (j, chunk) in (0..self.cw).step_by(32).enumerate() {
                 let end = (chunk + 32).min(self.cw);
-                let mut bits = 0u32;
-                let mut soft_bits = 0u32;
-                for cx in chunk..end {
-                    let xb = i32::from(srow_b[cx]) << 8;
-                    let xr = i32::from(srow_r[cx]) << 8;
-                    if first {
-                        mrow_b[cx] = xb as u16;
-                        mrow_r[cx] = xr as u16;
-                        continue;
-                    }
-                    let db = xb - i32::from(mrow_b[cx]);
-                    let dr = xr - i32::from(mrow_r[cx]);
+                let n = end - chunk;
+                let mut fg = [0u8; 32];
+                let mut sf = [0u8; 32];
+                let (xb, xr) = (&srow_b[chunk..end], &srow_r[chunk..end]);
+                let (mb, mr) = (&mut mrow_b[chunk..end], &mut mrow_r[chunk..end]);
+                for i in 0..n {
+                    let db = (i32::from(xb[i]) << 8) - i32::from(mb[i]);
+                    let dr = (i32::from(xr[i]) << 8) - i32::from(mr[i]);
                     let l1 = db.abs() + dr.abs();
-                    let fg = l1 > thr;
-                    bits |= u32::from(fg) << (cx - chunk);
-                    soft_bits |= u32::from(l1 > thr_soft) << (cx - chunk);
-                    let r = if fg { rate_fg } else { rate };
+                    fg[i] = u8::from(l1 > thr);
+                    sf[i] = u8::from(l1 > thr_soft);
                     // Round to nearest; the mean stays within [0, 255·256].
-                    mrow_b[cx] = (i32::from(mrow_b[cx]) + ((db * r + 2048) >> 12)) as u16;
-                    mrow_r[cx] = (i32::from(mrow_r[cx]) + ((dr * r + 2048) >> 12)) as u16;
+                    mb[i] = (i32::from(mb[i]) + ((db * rate + 2048) >> 12)) as u16;
+                    mr[i] = (i32::from(mr[i]) + ((dr * rate + 2048) >> 12)) as u16;
                 }
+                let soft_bits = pack32(&sf);
                 if soft_bits == 0 {
                     continue;
                 }
+                let bits = pack32(&fg);
                 self.foreground += bits.count_ones();
                 // Clip luma columns at or beyond the frame width (odd widths,
                 // last word).
@@ -171,6 +180,17 @@ impl ChromaBackground {
         }
         self.t = self.t.saturating_add(1);
     }
+}
+
+/// Packs 32 bytes of 0/1 into bits, byte `i` to bit `i` (one multiply per
+/// 8 bytes).
+fn pack32(flags: &[u8; 32]) -> u32 {
+    let mut bits = 0u32;
+    for (j, c) in flags.chunks_exact(8).enumerate() {
+        let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+        bits |= ((v.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32) << (8 * j);
+    }
+    bits
 }
 
 /// Moves bit `i` of `b` to bits `2i` and `2i + 1`.
@@ -210,7 +230,7 @@ mod tests {
             height: 9,
         };
         let mut frame = Frame::new(size);
-        let mut model = ChromaBackground::new(size.width, size.height, 100, 0.25, 10, 4);
+        let mut model = ChromaBackground::new(size.width, size.height, 100, 10, 4);
         let mut mask = BitMask::new(size.width, size.height);
         let mut soft = BitMask::new(size.width, size.height);
         for _ in 0..20 {

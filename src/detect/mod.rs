@@ -373,11 +373,6 @@ impl Detector {
                 size.width,
                 size.height,
                 cfg.history,
-                // Full rate at foreground too: a slower one (as the GMM's
-                // `foreground_rate`) left chroma ghosts behind people who
-                // stood at start-up (sim:low false regions 0.5 -> 2.2 per
-                // frame); standing people are held by the luma GMM.
-                1.0,
                 cfg.chroma_threshold,
                 cfg.shadow_chroma_threshold,
             ),
