@@ -169,7 +169,8 @@ fn main() {
         score.false_per_frame(),
         f64::from(score.regions) / f64::from(score.frames.max(1))
     );
-    println!(
+    if frames > 300 {
+        println!(
         "frames 300..{frames}: isolated {} matched {} ({:.1} %) mean IoU {:.3} false/frame {:.2}",
         late.isolated,
         late.matched,
@@ -177,6 +178,7 @@ fn main() {
         late.mean_iou(),
         late.false_per_frame()
     );
+    }
     why.print();
     if let Some(p) = &px_truth {
         p.print();

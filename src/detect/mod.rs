@@ -22,11 +22,18 @@
 //!   the default `foreground_rate = 0.25` after 155 frames (15 s at 10 fps;
 //!   at the steady α = 1/500 about 5/3 of both). The price: a ghost left by
 //!   a background object that moves away also takes that long to heal.
-//! * Shadows: a foreground pixel 0.7–0.95 times as bright as a background
-//!   mode counts as shadow (luma only; OpenCV's 0.5 erased grey clothing on
+//! * Shadows: a foreground pixel 0.65–0.95 times as bright as a background
+//!   mode is a shadow candidate (luma; OpenCV's 0.5 erased grey clothing on
 //!   PETS). A pixel whose chroma differs from the [`chroma`] background by
 //!   more than `chroma_threshold` is foreground anyway (keeps people whose
-//!   clothes match the ground in luma whole, and coloured "shadows").
+//!   clothes match the ground in luma whole), and a shadow candidate whose
+//!   chroma differs by more than the stricter `shadow_chroma_threshold` is
+//!   foreground too (a shadow darkens, it does not recolour). A candidate
+//!   with foreground within `shadow_fill_rows` above and below it in its
+//!   column is foreground (grey trousers under a shirt).
+//! * Regions: after opening, fill and closing, a region whose column
+//!   profile has a deep valley between two person-tall peaks is cut there
+//!   (`split_valley`: people walking side by side).
 //!   `bench/RESULTS.md` ("Detection") has the measurements.
 
 pub mod background;
