@@ -443,13 +443,19 @@ fn fast_chunk<const K: usize>(
         var0[i] = vs[i] as u8;
         ok[i] = (good[i] & 1) as u8;
     }
-    // Pack the flags: 8 bytes of 0/1 to 8 bits with one multiply.
+    !pack_flags(&ok)
+}
+
+/// Packs up to 64 bytes of 0/1 (a multiple of 8) into bits, byte `i` to bit
+/// `i`: 8 bytes to 8 bits with one multiply.
+#[inline(always)]
+pub(crate) fn pack_flags<const N: usize>(flags: &[u8; N]) -> u64 {
     let mut bits = 0u64;
-    for (j, c) in ok.chunks_exact(8).enumerate() {
+    for (j, c) in flags.chunks_exact(8).enumerate() {
         let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
         bits |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * j);
     }
-    !bits
+    bits
 }
 
 /// Statistics of the last frame.

@@ -13,6 +13,7 @@
 //! Q8.8 in a `u16`: 4 bytes per chroma sample, 1 byte per luma pixel). All
 //! arithmetic is integer, so the result is bit-exact across platforms.
 
+use super::background::pack_flags;
 use crate::frame::Frame;
 
 /// Learning rates are Q12 fractions (4096 = 1).
@@ -155,11 +156,11 @@ impl ChromaBackground {
                     mb[i] = (i32::from(mb[i]) + ((db * rate + 2048) >> 12)) as u16;
                     mr[i] = (i32::from(mr[i]) + ((dr * rate + 2048) >> 12)) as u16;
                 }
-                let soft_bits = pack32(&sf);
+                let soft_bits = pack_flags(&sf) as u32;
                 if soft_bits == 0 {
                     continue;
                 }
-                let bits = pack32(&fg);
+                let bits = pack_flags(&fg) as u32;
                 self.foreground += bits.count_ones();
                 // Clip luma columns at or beyond the frame width (odd widths,
                 // last word).
@@ -180,17 +181,6 @@ impl ChromaBackground {
         }
         self.t = self.t.saturating_add(1);
     }
-}
-
-/// Packs 32 bytes of 0/1 into bits, byte `i` to bit `i` (one multiply per
-/// 8 bytes).
-fn pack32(flags: &[u8; 32]) -> u32 {
-    let mut bits = 0u32;
-    for (j, c) in flags.chunks_exact(8).enumerate() {
-        let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
-        bits |= ((v.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32) << (8 * j);
-    }
-    bits
 }
 
 /// Moves bit `i` of `b` to bits `2i` and `2i + 1`.

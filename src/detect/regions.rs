@@ -577,6 +577,19 @@ mod tests {
         out
     }
 
+    /// Each region's runs cover exactly its pixels, in row order.
+    fn assert_runs_cover_regions(out: &RegionSet) {
+        for r in out.regions() {
+            let px: u32 = out
+                .runs_of(r)
+                .iter()
+                .map(|q| u32::from(q.x1 - q.x0) + 1)
+                .sum();
+            assert_eq!(px, r.area);
+            assert!(out.runs_of(r).windows(2).all(|q| q[0].y <= q[1].y));
+        }
+    }
+
     #[test]
     fn labels_match_flood_fill_on_random_masks() {
         let mut s: u32 = 99;
@@ -598,16 +611,7 @@ mod tests {
                     out.regions().iter().map(|r| (r.area, r.bbox)).collect();
                 got.sort_by_key(|r| (r.1.y0, r.1.x0, r.0));
                 assert_eq!(got, reference(&m), "{w}x{h} density {density}");
-                // Runs cover exactly the region's pixels.
-                for r in out.regions() {
-                    let px: u32 = out
-                        .runs_of(r)
-                        .iter()
-                        .map(|q| u32::from(q.x1 - q.x0) + 1)
-                        .sum();
-                    assert_eq!(px, r.area);
-                    assert!(out.runs_of(r).windows(2).all(|q| q[0].y <= q[1].y));
-                }
+                assert_runs_cover_regions(&out);
             }
         }
     }
@@ -688,14 +692,7 @@ mod tests {
         assert_eq!(r.len(), 2, "{r:?}");
         assert!(r[0].bbox.x1 < r[1].bbox.x0);
         assert_eq!((r[0].head, r[1].head), ([4.0, 1.0], [14.0, 1.0]));
-        for q in r {
-            let px: u32 = out
-                .runs_of(q)
-                .iter()
-                .map(|q| u32::from(q.x1 - q.x0) + 1)
-                .sum();
-            assert_eq!(px, q.area);
-        }
+        assert_runs_cover_regions(&out);
         // A walker: torso columns 4..=10 on rows 0..=9, legs apart below.
         let mut rows = Vec::new();
         for y in 0..20 {
