@@ -443,13 +443,19 @@ fn fast_chunk<const K: usize>(
         var0[i] = vs[i] as u8;
         ok[i] = (good[i] & 1) as u8;
     }
-    // Pack the flags: 8 bytes of 0/1 to 8 bits with one multiply.
+    !pack_flags(&ok)
+}
+
+/// Packs up to 64 bytes of 0/1 (a multiple of 8) into bits, byte `i` to bit
+/// `i`: 8 bytes to 8 bits with one multiply.
+#[inline(always)]
+pub(crate) fn pack_flags<const N: usize>(flags: &[u8; N]) -> u64 {
     let mut bits = 0u64;
-    for (j, c) in ok.chunks_exact(8).enumerate() {
+    for (j, c) in flags.chunks_exact(8).enumerate() {
         let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
         bits |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * j);
     }
-    !bits
+    bits
 }
 
 /// Statistics of the last frame.
@@ -573,8 +579,15 @@ impl Background {
 
     /// Updates the model with `frame` and writes the foreground mask (one
     /// bit per pixel, rows of `words_per_row` words, bit `x % 64` of word
-    /// `x / 64`) to `mask`.
-    pub fn apply(&mut self, frame: &Frame, mask: &mut [u64], words_per_row: usize) {
+    /// `x / 64`) to `mask` and the pixels it called shadow to `shadow`
+    /// (same layout).
+    pub fn apply(
+        &mut self,
+        frame: &Frame,
+        mask: &mut [u64],
+        shadow: &mut [u64],
+        words_per_row: usize,
+    ) {
         let r = self.rates();
         self.stats = FrameStats {
             gain_q8: 256,
@@ -584,10 +597,10 @@ impl Background {
             self.compensate_gain(frame);
         }
         match self.p.k {
-            1 => self.pass::<1>(frame, &r, mask, words_per_row),
-            2 => self.pass::<2>(frame, &r, mask, words_per_row),
-            3 => self.pass::<3>(frame, &r, mask, words_per_row),
-            _ => self.pass::<4>(frame, &r, mask, words_per_row),
+            1 => self.pass::<1>(frame, &r, mask, shadow, words_per_row),
+            2 => self.pass::<2>(frame, &r, mask, shadow, words_per_row),
+            3 => self.pass::<3>(frame, &r, mask, shadow, words_per_row),
+            _ => self.pass::<4>(frame, &r, mask, shadow, words_per_row),
         }
         // Most of the frame changed at once (lights, camera moved, a gain
         // step the gain estimate could not explain): relearn fast.
@@ -601,7 +614,14 @@ impl Background {
         self.frame = self.frame.wrapping_add(1);
     }
 
-    fn pass<const K: usize>(&mut self, frame: &Frame, r: &Rates, mask: &mut [u64], wpr: usize) {
+    fn pass<const K: usize>(
+        &mut self,
+        frame: &Frame,
+        r: &Rates,
+        mask: &mut [u64],
+        shadow_mask: &mut [u64],
+        wpr: usize,
+    ) {
         let (wd, ht) = (self.width, self.height);
         let p = self.p;
         let mut slow = 0u32;
@@ -617,8 +637,9 @@ impl Background {
             let off = (frame_off + y * 1031) % DITHER_PERIOD;
             let drow = &self.dither[off..off + wd];
             let mrow = &mut mask[y * wpr..(y + 1) * wpr];
+            let srow = &mut shadow_mask[y * wpr..(y + 1) * wpr];
             let full = if self.force_slow { 0 } else { wd / CHUNK };
-            for (c, mword) in mrow.iter_mut().enumerate() {
+            for (c, (mword, sword)) in mrow.iter_mut().zip(srow.iter_mut()).enumerate() {
                 let x0 = c * CHUNK;
                 let x1 = (x0 + CHUNK).min(wd);
                 let mut todo = if c < full {
@@ -645,6 +666,7 @@ impl Background {
                     (1u64 << (x1 - x0)) - 1
                 };
                 let mut bits = 0u64;
+                let mut sbits = 0u64;
                 while todo != 0 {
                     let b = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
@@ -669,11 +691,15 @@ impl Background {
                             bits |= 1 << b;
                             fg_count += 1;
                         }
-                        Class::Shadow => shadow += 1,
+                        Class::Shadow => {
+                            sbits |= 1 << b;
+                            shadow += 1;
+                        }
                         Class::Background => {}
                     }
                 }
                 *mword = bits;
+                *sword = sbits;
             }
         }
         self.stats.slow_pixels = slow;

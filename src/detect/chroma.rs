@@ -13,6 +13,7 @@
 //! Q8.8 in a `u16`: 4 bytes per chroma sample, 1 byte per luma pixel). All
 //! arithmetic is integer, so the result is bit-exact across platforms.
 
+use super::background::pack_flags;
 use crate::frame::Frame;
 
 /// Learning rates are Q12 fractions (4096 = 1).
@@ -33,10 +34,10 @@ pub struct ChromaBackground {
     cr: Vec<u16>,
     /// Foreground when `|ΔCb| + |ΔCr|` exceeds this, grey levels (0 = off).
     threshold: u32,
+    /// A luma "shadow" whose `|ΔCb| + |ΔCr|` exceeds this is not one (≤ threshold).
+    shadow_threshold: u32,
     /// Steady learning rate, Q12 (≥ 1).
     rate_min: i32,
-    /// Factor on the rate at foreground samples, Q8.
-    fg_rate_q8: i32,
     /// Frames learned (saturating), for the `1/(t+1)` start-up rate.
     t: u32,
     /// Foreground chroma samples in the last frame.
@@ -45,15 +46,19 @@ pub struct ChromaBackground {
 
 impl ChromaBackground {
     /// A model for `width × height` luma frames. `history` sets the steady
-    /// rate `1/history`, `foreground_rate` scales it at foreground samples,
-    /// `threshold` is the L1 (Cb, Cr) distance in grey levels (0 = off:
-    /// [`Self::apply`] then does nothing and the model holds no samples).
+    /// rate `1/history`, at every sample: a slower rate at foreground
+    /// samples (as the GMM's `foreground_rate`) left chroma ghosts behind
+    /// people who stood at start-up (sim:low false regions 0.5 -> 2.2 per
+    /// frame); standing people are held by the luma GMM. `threshold` is the
+    /// L1 (Cb, Cr) distance in grey levels (0 = off: [`Self::apply`] then
+    /// does nothing and the model holds no samples); `shadow_threshold` the
+    /// smaller one of the soft mask (0: the same as `threshold`).
     pub fn new(
         width: usize,
         height: usize,
         history: u32,
-        foreground_rate: f64,
         threshold: u32,
+        shadow_threshold: u32,
     ) -> Self {
         let (cw, ch) = (width.div_ceil(2), height.div_ceil(2));
         let n = if threshold == 0 { 0 } else { cw * ch };
@@ -64,8 +69,13 @@ impl ChromaBackground {
             cb: vec![0; n],
             cr: vec![0; n],
             threshold,
+            // 0: no soft mask (the luma-only shadow test).
+            shadow_threshold: if shadow_threshold == 0 {
+                threshold
+            } else {
+                shadow_threshold.min(threshold)
+            },
             rate_min: (RATE_ONE / history.max(1) as i32).max(1),
-            fg_rate_q8: (foreground_rate.clamp(0.0, 1.0) * 256.0).round() as i32,
             t: 0,
             foreground: 0,
         }
@@ -91,65 +101,92 @@ impl ChromaBackground {
     /// sample covering its 2×2 luma pixels, into `mask` (packed bits, bit
     /// `x % 64` of word `y * words_per_row + x / 64`, as
     /// [`super::morphology::BitMask`]).
-    pub fn apply(&mut self, frame: &Frame, mask: &mut [u64], words_per_row: usize) {
+    pub fn apply(
+        &mut self,
+        frame: &Frame,
+        mask: &mut [u64],
+        soft: &mut [u64],
+        words_per_row: usize,
+    ) {
         self.foreground = 0;
         if !self.enabled() {
             return;
         }
         let (cbp, crp) = (frame.cb(), frame.cr());
+        if self.t == 0 {
+            for cy in 0..self.ch {
+                let (srow_b, srow_r) = (cbp.row(cy), crp.row(cy));
+                let row = cy * self.cw..(cy + 1) * self.cw;
+                for (m, &x) in self.cb[row.clone()].iter_mut().zip(srow_b) {
+                    *m = u16::from(x) << 8;
+                }
+                for (m, &x) in self.cr[row].iter_mut().zip(srow_r) {
+                    *m = u16::from(x) << 8;
+                }
+            }
+            self.t = 1;
+            return;
+        }
         // α = 1/(t+1) at start-up, then 1/history; Q12 so that
         // (Δ in Q8.8, |Δ| < 2^16) × rate (≤ 2^12) < 2^28 fits an i32.
         let rate = (RATE_ONE / (self.t as i32).saturating_add(1)).max(self.rate_min);
-        let rate_fg = (rate * self.fg_rate_q8 >> 8).max(1);
-        let first = self.t == 0;
         let thr = (self.threshold as i32) << 8;
+        let thr_soft = (self.shadow_threshold as i32) << 8;
         let height = mask.len() / words_per_row.max(1);
         for cy in 0..self.ch {
             let (srow_b, srow_r) = (cbp.row(cy), crp.row(cy));
             let mrow_b = &mut self.cb[cy * self.cw..(cy + 1) * self.cw];
             let mrow_r = &mut self.cr[cy * self.cw..(cy + 1) * self.cw];
-            // 32 chroma samples make one 64-bit luma mask word.
+            // 32 chroma samples make one 64-bit luma mask word. Flags go to
+            // byte lanes first (vectorisable), then are packed.
             for (j, chunk) in (0..self.cw).step_by(32).enumerate() {
                 let end = (chunk + 32).min(self.cw);
-                let mut bits = 0u32;
-                for cx in chunk..end {
-                    let xb = i32::from(srow_b[cx]) << 8;
-                    let xr = i32::from(srow_r[cx]) << 8;
-                    if first {
-                        mrow_b[cx] = xb as u16;
-                        mrow_r[cx] = xr as u16;
-                        continue;
-                    }
-                    let db = xb - i32::from(mrow_b[cx]);
-                    let dr = xr - i32::from(mrow_r[cx]);
-                    let fg = db.abs() + dr.abs() > thr;
-                    bits |= u32::from(fg) << (cx - chunk);
-                    let r = if fg { rate_fg } else { rate };
+                let n = end - chunk;
+                let mut fg = [0u8; 32];
+                let mut sf = [0u8; 32];
+                let (xb, xr) = (&srow_b[chunk..end], &srow_r[chunk..end]);
+                let (mb, mr) = (&mut mrow_b[chunk..end], &mut mrow_r[chunk..end]);
+                for i in 0..n {
+                    let db = (i32::from(xb[i]) << 8) - i32::from(mb[i]);
+                    let dr = (i32::from(xr[i]) << 8) - i32::from(mr[i]);
+                    let l1 = db.abs() + dr.abs();
+                    fg[i] = u8::from(l1 > thr);
+                    sf[i] = u8::from(l1 > thr_soft);
                     // Round to nearest; the mean stays within [0, 255·256].
-                    mrow_b[cx] = (i32::from(mrow_b[cx]) + ((db * r + 2048) >> 12)) as u16;
-                    mrow_r[cx] = (i32::from(mrow_r[cx]) + ((dr * r + 2048) >> 12)) as u16;
+                    mb[i] = (i32::from(mb[i]) + ((db * rate + 2048) >> 12)) as u16;
+                    mr[i] = (i32::from(mr[i]) + ((dr * rate + 2048) >> 12)) as u16;
                 }
-                if bits == 0 {
+                let soft_bits = pack_flags(&sf) as u32;
+                if soft_bits == 0 {
                     continue;
                 }
+                let bits = pack_flags(&fg) as u32;
                 self.foreground += bits.count_ones();
-                let mut word = spread(bits);
-                word |= word << 1;
                 // Clip luma columns at or beyond the frame width (odd widths,
                 // last word).
                 let x0 = j * 64;
-                if x0 + 64 > self.width {
-                    word &= (1u64 << (self.width - x0)) - 1;
-                }
+                let clip = if x0 + 64 > self.width {
+                    (1u64 << (self.width - x0)) - 1
+                } else {
+                    u64::MAX
+                };
+                let (word, soft_word) = (spread2(bits) & clip, spread2(soft_bits) & clip);
                 for y in [2 * cy, 2 * cy + 1] {
                     if y < height && j < words_per_row {
                         mask[y * words_per_row + j] |= word;
+                        soft[y * words_per_row + j] |= soft_word;
                     }
                 }
             }
         }
         self.t = self.t.saturating_add(1);
     }
+}
+
+/// Moves bit `i` of `b` to bits `2i` and `2i + 1`.
+fn spread2(b: u32) -> u64 {
+    let w = spread(b);
+    w | w << 1
 }
 
 /// Moves bit `i` of `b` to bit `2i` (Morton spread).
@@ -183,31 +220,37 @@ mod tests {
             height: 9,
         };
         let mut frame = Frame::new(size);
-        let mut model = ChromaBackground::new(size.width, size.height, 100, 0.25, 10);
+        let mut model = ChromaBackground::new(size.width, size.height, 100, 10, 4);
         let mut mask = BitMask::new(size.width, size.height);
+        let mut soft = BitMask::new(size.width, size.height);
         for _ in 0..20 {
             frame.y.fill(100);
             frame.u.fill(120);
             frame.v.fill(130);
             let wpr = mask.words_per_row();
-            model.apply(&frame, mask.words_mut(), wpr);
+            model.apply(&frame, mask.words_mut(), soft.words_mut(), wpr);
             assert_eq!(mask.count(), 0);
+            assert_eq!(soft.count(), 0);
         }
         let cw = size.chroma().width;
         // Chroma samples 3 and the last one (35: luma 70 only) on row 1.
         frame.u[cw + 3] = 135;
         frame.v[cw + 35] = 112;
         let wpr = mask.words_per_row();
-        model.apply(&frame, mask.words_mut(), wpr);
+        model.apply(&frame, mask.words_mut(), soft.words_mut(), wpr);
         assert_eq!(model.foreground(), 2);
+        assert_eq!(soft, mask, "beyond the threshold is beyond the soft one");
         assert_eq!(mask.count(), 4 + 2);
         assert!(mask.get(6, 2) && mask.get(7, 3) && mask.get(70, 2) && mask.get(70, 3));
-        // A change within the threshold is not.
+        // A change within the threshold is not foreground, but beyond the
+        // shadow threshold it is in the soft mask.
         let mut mask2 = BitMask::new(size.width, size.height);
+        let mut soft2 = BitMask::new(size.width, size.height);
         frame.u.fill(125);
         frame.v.fill(126);
         let wpr = mask2.words_per_row();
-        model.apply(&frame, mask2.words_mut(), wpr);
+        model.apply(&frame, mask2.words_mut(), soft2.words_mut(), wpr);
         assert_eq!(mask2.count(), 0);
+        assert_eq!(soft2.count(), size.pixels() as u64);
     }
 }

@@ -22,11 +22,18 @@
 //!   the default `foreground_rate = 0.25` after 155 frames (15 s at 10 fps;
 //!   at the steady α = 1/500 about 5/3 of both). The price: a ghost left by
 //!   a background object that moves away also takes that long to heal.
-//! * Shadows: a foreground pixel 0.7–0.95 times as bright as a background
-//!   mode counts as shadow (luma only; OpenCV's 0.5 erased grey clothing on
+//! * Shadows: a foreground pixel 0.65–0.95 times as bright as a background
+//!   mode is a shadow candidate (luma; OpenCV's 0.5 erased grey clothing on
 //!   PETS). A pixel whose chroma differs from the [`chroma`] background by
 //!   more than `chroma_threshold` is foreground anyway (keeps people whose
-//!   clothes match the ground in luma whole, and coloured "shadows").
+//!   clothes match the ground in luma whole), and a shadow candidate whose
+//!   chroma differs by more than the stricter `shadow_chroma_threshold` is
+//!   foreground too (a shadow darkens, it does not recolour). A candidate
+//!   with foreground within `shadow_fill_rows` above and below it in its
+//!   column is foreground (grey trousers under a shirt).
+//! * Regions: after opening, fill and closing, a region whose column
+//!   profile has a deep valley between two person-tall peaks is cut there
+//!   (`split_valley`: people walking side by side).
 //!   `bench/RESULTS.md` ("Detection") has the measurements.
 
 pub mod background;
@@ -81,6 +88,10 @@ pub struct DetectConfig {
     /// chroma background by more than this L1 distance (grey levels) is
     /// foreground too, shadow or not (0 = off; luma GMM only).
     pub chroma_threshold: u32,
+    /// A pixel the luma model calls shadow stays foreground when its
+    /// (Cb, Cr) differs from the chroma background by more than this L1
+    /// distance (grey levels, ≤ `chroma_threshold`; 0 = luma-only shadow test).
+    pub shadow_chroma_threshold: u32,
     /// Rescale the model when the median brightness ratio frame/model jumps.
     pub gain_compensation: bool,
     /// Gain change (fraction) that triggers a rescale.
@@ -97,6 +108,15 @@ pub struct DetectConfig {
     pub close_radius_y: u32,
     /// Smallest region kept, in pixels per megapixel of frame (scales with resolution).
     pub min_area_per_mpix: u32,
+    /// A pixel called shadow is foreground when the cleaned-up mask has
+    /// foreground within this many rows both above and below it in its
+    /// column (grey trousers between a shirt and shoes; a ground shadow has
+    /// foreground on one side only; 0 = off).
+    pub shadow_fill_rows: u32,
+    /// Cut a region where its column profile (pixels per column) falls to
+    /// this fraction of the lower of two person-tall peaks beside it
+    /// (people walking side by side; 0 = never cut).
+    pub split_valley: f64,
     /// Regions one frame can hold (more are counted and dropped).
     pub max_regions: u32,
     /// Foreground runs per image row budgeted for the region masks.
@@ -105,6 +125,12 @@ pub struct DetectConfig {
 
 /// Default `chroma_threshold` (see `bench/RESULTS.md`, "Detection").
 const CHROMA_THRESHOLD: u32 = 16;
+/// Default `shadow_fill_rows` (see `bench/RESULTS.md`, "Detection").
+const SHADOW_FILL_ROWS: u32 = 12;
+/// Default `split_valley` (see `bench/RESULTS.md`, "Detection").
+const SPLIT_VALLEY: f64 = 0.55;
+/// Default `shadow_chroma_threshold` (see `bench/RESULTS.md`, "Detection").
+const SHADOW_CHROMA_THRESHOLD: u32 = 8;
 
 impl Default for DetectConfig {
     fn default() -> Self {
@@ -121,9 +147,10 @@ impl Default for DetectConfig {
             fast_startup: true,
             foreground_rate: 0.25,
             shadow: true,
-            shadow_min_ratio: 0.7,
+            shadow_min_ratio: 0.65,
             shadow_max_ratio: 0.95,
             chroma_threshold: CHROMA_THRESHOLD,
+            shadow_chroma_threshold: SHADOW_CHROMA_THRESHOLD,
             gain_compensation: true,
             gain_threshold: 0.03,
             relearn_fraction: 0.6,
@@ -131,6 +158,8 @@ impl Default for DetectConfig {
             close_radius: 2,
             close_radius_y: 6,
             min_area_per_mpix: 400,
+            split_valley: SPLIT_VALLEY,
+            shadow_fill_rows: SHADOW_FILL_ROWS,
             max_regions: 64,
             max_runs_per_row: 16,
         }
@@ -165,6 +194,11 @@ impl DetectConfig {
             self.shadow_min_ratio..=1.0,
         )?;
         check_range("detect.chroma_threshold", self.chroma_threshold, 0..=255)?;
+        check_range(
+            "detect.shadow_chroma_threshold",
+            self.shadow_chroma_threshold,
+            0..=self.chroma_threshold,
+        )?;
         check_range("detect.gain_threshold", self.gain_threshold, 0.005..=0.5)?;
         check_range("detect.relearn_fraction", self.relearn_fraction, 0.1..=1.0)?;
         check_range("detect.open_radius", self.open_radius, 0..=4)?;
@@ -175,6 +209,8 @@ impl DetectConfig {
             self.min_area_per_mpix,
             0..=1_000_000,
         )?;
+        check_range("detect.split_valley", self.split_valley, 0.0..=1.0)?;
+        check_range("detect.shadow_fill_rows", self.shadow_fill_rows, 0..=256)?;
         check_range("detect.max_regions", self.max_regions, 1..=4096)?;
         check_range("detect.max_runs_per_row", self.max_runs_per_row, 1..=1024)?;
         Ok(())
@@ -321,13 +357,16 @@ pub struct Detector {
     background: Background,
     chroma: ChromaBackground,
     chroma_fg: BitMask,
+    chroma_soft: BitMask,
     raw: BitMask,
+    shadow: BitMask,
     clean: BitMask,
     scratch: BitMask,
     labeller: Labeller,
     open_radius: u32,
     close_radius: u32,
     close_radius_y: u32,
+    shadow_fill_rows: usize,
     min_area: u32,
 }
 
@@ -341,21 +380,24 @@ impl Detector {
                 size.width,
                 size.height,
                 cfg.history,
-                // Full rate at foreground too: a slower one (as the GMM's
-                // `foreground_rate`) left chroma ghosts behind people who
-                // stood at start-up (sim:low false regions 0.5 -> 2.2 per
-                // frame); standing people are held by the luma GMM.
-                1.0,
                 cfg.chroma_threshold,
+                cfg.shadow_chroma_threshold,
             ),
             chroma_fg: BitMask::new(size.width, size.height),
+            chroma_soft: BitMask::new(size.width, size.height),
             raw: BitMask::new(size.width, size.height),
+            shadow: BitMask::new(size.width, size.height),
             clean: BitMask::new(size.width, size.height),
             scratch: BitMask::new(size.width, size.height),
-            labeller: Labeller::new(cfg.run_capacity(size)),
+            labeller: {
+                let mut l = Labeller::new(cfg.run_capacity(size), size.width);
+                l.set_split(cfg.split_valley);
+                l
+            },
             open_radius: cfg.open_radius,
             close_radius: cfg.close_radius,
             close_radius_y: cfg.close_radius_y,
+            shadow_fill_rows: cfg.shadow_fill_rows as usize,
             min_area: cfg.min_area(size).max(1),
         }
     }
@@ -378,29 +420,38 @@ impl Detector {
     /// (luma GMM) and [`Self::chroma_mask`].
     pub fn segment(&mut self, frame: &Frame) {
         let wpr = self.raw.words_per_row();
-        self.background.apply(frame, self.raw.words_mut(), wpr);
+        self.background
+            .apply(frame, self.raw.words_mut(), self.shadow.words_mut(), wpr);
         if self.background.stats().relearn {
             self.chroma.relearn(8);
         }
         self.chroma_fg.words_mut().fill(0);
-        self.chroma.apply(frame, self.chroma_fg.words_mut(), wpr);
+        self.chroma_soft.words_mut().fill(0);
+        self.chroma.apply(
+            frame,
+            self.chroma_fg.words_mut(),
+            self.chroma_soft.words_mut(),
+            wpr,
+        );
     }
     /// Stage 2: the union of the luma and chroma masks, opened then closed,
     /// into [`Self::mask`].
     pub fn clean_up(&mut self) {
         self.clean.copy_from(&self.raw);
         if self.chroma.enabled() {
-            for (c, &f) in self
+            let it = self
                 .clean
                 .words_mut()
                 .iter_mut()
                 .zip(self.chroma_fg.words())
-            {
-                *c |= f;
+                .zip(self.shadow.words().iter().zip(self.chroma_soft.words()));
+            for ((c, &f), (&sh, &soft)) in it {
+                *c |= f | (sh & soft);
             }
         }
         let (o, cx, cy) = (self.open_radius, self.close_radius, self.close_radius_y);
         morphology::open(&mut self.clean, &mut self.scratch, o, o);
+        morphology::fill_between(&mut self.clean, &self.shadow, self.shadow_fill_rows);
         morphology::close(&mut self.clean, &mut self.scratch, cx, cy);
     }
     /// Stage 3: connected regions of [`Self::mask`] into `out` (cleared first).
@@ -411,6 +462,10 @@ impl Detector {
     /// The foreground mask straight from the model (shadows excluded).
     pub fn raw_mask(&self) -> &BitMask {
         &self.raw
+    }
+    /// The pixels the luma model called shadow in the last frame.
+    pub fn shadow_mask(&self) -> &BitMask {
+        &self.shadow
     }
     /// The chroma foreground of the last frame (empty when the term is off).
     pub fn chroma_mask(&self) -> &BitMask {

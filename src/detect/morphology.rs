@@ -182,6 +182,44 @@ pub fn close(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
     erode(m, tmp, rx, ry);
 }
 
+/// Sets the pixels of `weak` that have a set pixel of `m` within `reach`
+/// rows above and within `reach` rows below in the same column (rows are
+/// processed top-down, so filled pixels count for the rows below). Only
+/// words where `weak` has bits are visited: cost ∝ weak words × `reach`.
+pub fn fill_between(m: &mut BitMask, weak: &BitMask, reach: usize) {
+    let (wpr, h) = (m.wpr, m.height);
+    if reach == 0 {
+        return;
+    }
+    for y in 1..h.saturating_sub(1) {
+        for j in 0..wpr {
+            let wk = weak.words[y * wpr + j] & !m.words[y * wpr + j];
+            if wk == 0 {
+                continue;
+            }
+            let mut up = 0u64;
+            for k in 1..=reach.min(y) {
+                up |= m.words[(y - k) * wpr + j];
+                if wk & !up == 0 {
+                    break;
+                }
+            }
+            let cand = wk & up;
+            if cand == 0 {
+                continue;
+            }
+            let mut down = 0u64;
+            for k in 1..=reach.min(h - 1 - y) {
+                down |= m.words[(y + k) * wpr + j];
+                if cand & !down == 0 {
+                    break;
+                }
+            }
+            m.words[y * wpr + j] |= cand & down;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -211,6 +249,33 @@ mod tests {
             }
         }
         out
+    }
+
+    /// A weak gap between set pixels above and below is filled; weak
+    /// pixels with a set pixel on one side only, or farther than `reach`,
+    /// are not.
+    #[test]
+    fn fill_between_bridges_vertical_gaps_only() {
+        let (w, h) = (70, 20);
+        let mut m = BitMask::new(w, h);
+        let mut weak = BitMask::new(w, h);
+        for y in 0..h {
+            // Column 3: set at rows 2 and 8, weak between (a grey jacket).
+            // Column 66: set at row 2 only, weak below (a ground shadow).
+            // Column 40: set at rows 2 and 15, weak between (too far apart).
+            m.set(3, y, y == 2 || y == 8);
+            weak.set(3, y, (3..8).contains(&y));
+            m.set(66, y, y == 2);
+            weak.set(66, y, (3..10).contains(&y));
+            m.set(40, y, y == 2 || y == 15);
+            weak.set(40, y, (3..15).contains(&y));
+        }
+        fill_between(&mut m, &weak, 6);
+        for y in 0..h {
+            assert_eq!(m.get(3, y), (2..=8).contains(&y), "col 3 row {y}");
+            assert_eq!(m.get(66, y), y == 2, "col 66 row {y}");
+            assert_eq!(m.get(40, y), y == 2 || y == 15, "col 40 row {y}");
+        }
     }
 
     #[test]

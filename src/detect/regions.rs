@@ -12,6 +12,11 @@
 //!    raster order), and regions of at least `min_area` pixels are pushed
 //!    with their run-length masks.
 //!
+//! 4. Optionally, a region whose column profile (pixels per column) has a
+//!    deep valley between two person-tall peaks is cut there: people
+//!    walking side by side touch at a bag, a hand or a shadow and would
+//!    otherwise make one region (see [`Labeller::set_split`]).
+//!
 //! Head (paper eq. 5): the mean column of the top row's pixels, on the top
 //! row. Foot: the mean position of the bottom-most 10 pixels, taken row by
 //! row from the bottom; a row with more pixels than still needed contributes
@@ -48,12 +53,31 @@ pub struct Labeller {
     roots: Vec<u32>,
     start: Vec<u32>,
     sorted: Vec<Run>,
+    /// Valley depth for splitting, Q8 fraction of the lower peak (0 = off).
+    split_q8: u32,
+    /// Column profile of one region (`width + 1` entries).
+    hist: Vec<i32>,
+    /// Prefix maxima of the profile.
+    pmax: Vec<u32>,
+    /// Top-most row of each column of one region, relative to its top.
+    ctop: Vec<u16>,
+    /// Cut columns of one region.
+    cuts: Vec<u16>,
+    /// The runs of one part of a split region.
+    part: Vec<Run>,
 }
 
 impl Labeller {
-    /// Room for `runs` foreground runs per frame (more are dropped and counted).
-    pub fn new(runs: usize) -> Self {
+    /// Room for `runs` foreground runs per frame (more are dropped and
+    /// counted), for masks up to `width` columns.
+    pub fn new(runs: usize, width: usize) -> Self {
         Labeller {
+            split_q8: 0,
+            hist: vec![0; width + 1],
+            pmax: vec![0; width + 1],
+            ctop: vec![0; width + 1],
+            cuts: Vec::with_capacity(width),
+            part: Vec::with_capacity(runs),
             cap: runs,
             runs: Vec::with_capacity(runs),
             parent: Vec::with_capacity(runs),
@@ -62,6 +86,16 @@ impl Labeller {
             start: Vec::with_capacity(runs + 1),
             sorted: Vec::with_capacity(runs),
         }
+    }
+
+    /// Splits regions at column-profile valleys no deeper than `valley`
+    /// times the lower of the two peaks beside them (0 = never). Both peaks
+    /// must be at least half the region's height (an outstretched arm is not
+    /// a person), the cut column must be empty over the top eighth of the
+    /// region (at a stride the torso covers the crotch columns from near the
+    /// top), and each part must keep `min_area` pixels.
+    pub fn set_split(&mut self, valley: f64) {
+        self.split_q8 = (valley.clamp(0.0, 1.0) * 256.0).round() as u32;
     }
 
     fn find(&mut self, mut i: u32) -> u32 {
@@ -232,21 +266,201 @@ impl Labeller {
                 (a.top_sx2 as f64 / (2.0 * f64::from(a.top_n))) as f32,
                 f32::from(y0),
             ];
+            if self.split_q8 > 0
+                && find_cuts(
+                    runs,
+                    bbox,
+                    min_area,
+                    self.split_q8,
+                    &mut self.hist,
+                    &mut self.pmax,
+                    &mut self.ctop,
+                    &mut self.cuts,
+                )
+            {
+                self.push_parts(begin..end, w, h, min_area, out);
+                continue;
+            }
             let region = Region {
                 area: a.area,
                 bbox,
                 head,
                 foot: foot(runs),
-                touches_border: a.x0 == 0
-                    || y0 == 0
-                    || usize::from(a.x1) + 1 >= w
-                    || usize::from(a.y1) + 1 >= h,
+                touches_border: touches(bbox, w, h),
                 runs: 0..0,
             };
             // A full set counts the overflow itself.
             let _ = out.push(region, runs);
         }
     }
+
+    /// Pushes the parts of the region whose runs are `sorted[range]`, cut at
+    /// `cuts` (the cut column itself goes to neither part).
+    fn push_parts(
+        &mut self,
+        range: core::ops::Range<usize>,
+        w: usize,
+        h: usize,
+        min_area: u32,
+        out: &mut RegionSet,
+    ) {
+        for p in 0..=self.cuts.len() {
+            let lo = if p == 0 {
+                0
+            } else {
+                u32::from(self.cuts[p - 1]) + 1
+            };
+            let hi = if p == self.cuts.len() {
+                u32::MAX
+            } else {
+                u32::from(self.cuts[p]).wrapping_sub(1)
+            };
+            if p < self.cuts.len() && self.cuts[p] == 0 {
+                continue;
+            }
+            self.part.clear();
+            for r in &self.sorted[range.clone()] {
+                let (a, b) = (u32::from(r.x0).max(lo), u32::from(r.x1).min(hi));
+                if a <= b {
+                    self.part.push(Run {
+                        y: r.y,
+                        x0: a as u16,
+                        x1: b as u16,
+                    });
+                }
+            }
+            if let Some(region) = region_of(&self.part, w, h) {
+                if region.area >= min_area {
+                    let _ = out.push(region, &self.part);
+                }
+            }
+        }
+    }
+}
+
+/// Fills `cuts` with the columns where `runs` (one region, box `b`)
+/// should be cut; whether there is any.
+fn find_cuts(
+    runs: &[Run],
+    b: BBox,
+    min_area: u32,
+    split_q8: u32,
+    hist: &mut [i32],
+    pmax: &mut [u32],
+    ctop: &mut [u16],
+    cuts: &mut Vec<u16>,
+) -> bool {
+    cuts.clear();
+    let (x0, wd, ht) = (usize::from(b.x0), b.width() as usize, b.height());
+    // Two people side by side are at least about as wide as tall / 2.
+    if 2 * wd < ht as usize || wd < 8 {
+        return false;
+    }
+    let hist = &mut hist[..wd + 1];
+    hist.fill(0);
+    for r in runs {
+        hist[usize::from(r.x0) - x0] += 1;
+        hist[usize::from(r.x1) + 1 - x0] -= 1;
+    }
+    let mut acc = 0i32;
+    for v in hist.iter_mut() {
+        acc += *v;
+        *v = acc;
+    }
+    // The top-most pixel of each column (runs are in raster order): at a
+    // stride the torso covers the crotch columns from near the top, while
+    // between two people the top of the region is empty.
+    let ctop = &mut ctop[..wd];
+    ctop.fill(u16::MAX);
+    for r in runs {
+        for t in &mut ctop[usize::from(r.x0) - x0..=usize::from(r.x1) - x0] {
+            if *t == u16::MAX {
+                *t = r.y - b.y0;
+            }
+        }
+    }
+    let min_peak = ht * SPLIT_MIN_PEAK_Q8 >> 8;
+    let min_top = (ht * SPLIT_EMPTY_TOP_Q8 >> 8).min(u32::from(u16::MAX)) as u16;
+    let mut m = 0u32;
+    for c in 0..wd {
+        m = m.max(hist[c] as u32);
+        pmax[c] = m;
+    }
+    // Right to left: suffix maximum on the fly; a candidate column is
+    // a valley under both sides' peaks; each run of candidates yields
+    // its lowest column.
+    let (mut smax, mut best): (u32, Option<(u32, usize)>) = (0, None);
+    let mut last_cut_area = 0u32;
+    for c in (0..wd).rev() {
+        let v = hist[c] as u32;
+        smax = smax.max(v);
+        let peak = pmax[c].min(smax);
+        let cand = peak >= min_peak && (v << 8) <= split_q8 * peak && ctop[c] >= min_top;
+        if cand {
+            if best.is_none_or(|(bv, _)| v < bv) {
+                best = Some((v, c));
+            }
+        } else if let Some((_, bc)) = best.take() {
+            // The part right of the cut must hold `min_area` pixels.
+            let right: u32 = hist[bc + 1..wd].iter().map(|&h| h as u32).sum();
+            if right - last_cut_area >= min_area {
+                cuts.push((x0 + bc) as u16);
+                last_cut_area = right;
+            }
+        }
+    }
+    // The leftmost part must hold `min_area` pixels too.
+    if let Some(&c) = cuts.last() {
+        let left: u32 = hist[..usize::from(c) - x0].iter().map(|&h| h as u32).sum();
+        if left < min_area {
+            cuts.pop();
+        }
+    }
+    cuts.reverse();
+    !cuts.is_empty()
+}
+
+/// Smallest peak of a split region's column profile, Q8 fraction of its height.
+const SPLIT_MIN_PEAK_Q8: u32 = 128;
+/// A cut column is empty over at least this top part of the region, Q8.
+const SPLIT_EMPTY_TOP_Q8: u32 = 32;
+
+fn touches(b: BBox, w: usize, h: usize) -> bool {
+    b.x0 == 0 || b.y0 == 0 || usize::from(b.x1) + 1 >= w || usize::from(b.y1) + 1 >= h
+}
+
+/// The region made of `runs` (raster order), `None` when empty.
+fn region_of(runs: &[Run], w: usize, h: usize) -> Option<Region> {
+    let first = runs.first()?;
+    let mut bbox = BBox {
+        x0: first.x0,
+        y0: first.y,
+        x1: first.x1,
+        y1: first.y,
+    };
+    let (mut area, mut top_n, mut top_sx2) = (0u32, 0u32, 0u64);
+    for r in runs {
+        let len = u32::from(r.x1 - r.x0) + 1;
+        area += len;
+        bbox.x0 = bbox.x0.min(r.x0);
+        bbox.x1 = bbox.x1.max(r.x1);
+        bbox.y1 = bbox.y1.max(r.y);
+        if r.y == first.y {
+            top_n += len;
+            top_sx2 += u64::from(len) * (u64::from(r.x0) + u64::from(r.x1));
+        }
+    }
+    Some(Region {
+        area,
+        bbox,
+        head: [
+            (top_sx2 as f64 / (2.0 * f64::from(top_n))) as f32,
+            f32::from(first.y),
+        ],
+        foot: foot(runs),
+        touches_border: touches(bbox, w, h),
+        runs: 0..0,
+    })
 }
 
 /// Mean position of the bottom-most [`FOOT_PIXELS`] pixels of a region's
@@ -363,6 +577,19 @@ mod tests {
         out
     }
 
+    /// Each region's runs cover exactly its pixels, in row order.
+    fn assert_runs_cover_regions(out: &RegionSet) {
+        for r in out.regions() {
+            let px: u32 = out
+                .runs_of(r)
+                .iter()
+                .map(|q| u32::from(q.x1 - q.x0) + 1)
+                .sum();
+            assert_eq!(px, r.area);
+            assert!(out.runs_of(r).windows(2).all(|q| q[0].y <= q[1].y));
+        }
+    }
+
     #[test]
     fn labels_match_flood_fill_on_random_masks() {
         let mut s: u32 = 99;
@@ -377,23 +604,14 @@ mod tests {
                         m.set(x, y, s % 16 < density);
                     }
                 }
-                let mut l = Labeller::new(w * h);
+                let mut l = Labeller::new(w * h, w);
                 let mut out = RegionSet::with_capacity(w * h, w * h);
                 l.label(&m, 1, &mut out);
                 let mut got: Vec<(u32, BBox)> =
                     out.regions().iter().map(|r| (r.area, r.bbox)).collect();
                 got.sort_by_key(|r| (r.1.y0, r.1.x0, r.0));
                 assert_eq!(got, reference(&m), "{w}x{h} density {density}");
-                // Runs cover exactly the region's pixels.
-                for r in out.regions() {
-                    let px: u32 = out
-                        .runs_of(r)
-                        .iter()
-                        .map(|q| u32::from(q.x1 - q.x0) + 1)
-                        .sum();
-                    assert_eq!(px, r.area);
-                    assert!(out.runs_of(r).windows(2).all(|q| q[0].y <= q[1].y));
-                }
+                assert_runs_cover_regions(&out);
             }
         }
     }
@@ -410,7 +628,7 @@ mod tests {
             "..........",
             "#.........",
         ]);
-        let mut l = Labeller::new(64);
+        let mut l = Labeller::new(64, 10);
         let mut out = RegionSet::with_capacity(4, 64);
         l.label(&m, 2, &mut out);
         assert_eq!(out.regions().len(), 1, "the single pixel is dropped");
@@ -435,9 +653,63 @@ mod tests {
         let mut small = RegionSet::with_capacity(0, 64);
         l.label(&m, 1, &mut small);
         assert_eq!(small.overflow, 2);
-        let mut few_runs = Labeller::new(3);
+        let mut few_runs = Labeller::new(3, 10);
         let mut out = RegionSet::with_capacity(4, 64);
         few_runs.label(&m, 1, &mut out);
         assert_eq!(out.runs_dropped, 4);
+    }
+
+    /// Two tall blobs joined at the bottom (people side by side touching
+    /// at a bag) are cut into two regions with their own head and foot; a
+    /// walker whose legs are apart, and a region too narrow, are not.
+    #[test]
+    fn side_by_side_people_are_split_and_a_stride_is_not() {
+        let mut rows = Vec::new();
+        for y in 0..20 {
+            // Columns 2..=6 and 12..=16 are two bodies; rows 16..=18 join them.
+            let mut r = String::new();
+            for x in 0..20 {
+                let body = (2..=6).contains(&x) || (12..=16).contains(&x);
+                let bridge = (16..=18).contains(&y) && (2..=16).contains(&x);
+                r.push(if (body && y >= 1 && y <= 18) || bridge {
+                    '#'
+                } else {
+                    '.'
+                });
+            }
+            rows.push(r);
+        }
+        let refs: Vec<&str> = rows.iter().map(|s| s.as_str()).collect();
+        let m = mask_from(&refs);
+        let mut l = Labeller::new(256, 20);
+        let mut out = RegionSet::with_capacity(8, 256);
+        l.label(&m, 5, &mut out);
+        assert_eq!(out.regions().len(), 1, "without splitting: one region");
+        l.set_split(0.55);
+        out.clear();
+        l.label(&m, 5, &mut out);
+        let r = out.regions();
+        assert_eq!(r.len(), 2, "{r:?}");
+        assert!(r[0].bbox.x1 < r[1].bbox.x0);
+        assert_eq!((r[0].head, r[1].head), ([4.0, 1.0], [14.0, 1.0]));
+        assert_runs_cover_regions(&out);
+        // A walker: torso columns 4..=10 on rows 0..=9, legs apart below.
+        let mut rows = Vec::new();
+        for y in 0..20 {
+            let mut r = String::new();
+            for x in 0..16 {
+                let on = if y < 10 {
+                    (4..=10).contains(&x)
+                } else {
+                    (2..=4).contains(&x) || (10..=12).contains(&x)
+                };
+                r.push(if on { '#' } else { '.' });
+            }
+            rows.push(r);
+        }
+        let refs: Vec<&str> = rows.iter().map(|s| s.as_str()).collect();
+        out.clear();
+        l.label(&mask_from(&refs), 5, &mut out);
+        assert_eq!(out.regions().len(), 1, "a stride is not cut");
     }
 }

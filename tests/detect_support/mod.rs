@@ -5,6 +5,8 @@
 use stature::detect::morphology::BitMask;
 use stature::detect::{BBox, DetectConfig, Region};
 use stature::frame::Frame;
+use stature::source::sim::people::Kind;
+use stature::source::sim::truth::ObjectTruth;
 use stature::source::sim::SimSource;
 
 /// One float mode.
@@ -250,18 +252,113 @@ impl Score {
     }
 }
 
+/// Whether a sim object is seen enough to be detectable (it counts for
+/// isolation and false regions).
+fn detectable(o: &ObjectTruth) -> bool {
+    o.visible_fraction >= 0.5 && o.visible_px >= 100
+}
+
 /// Truth boxes of people and other objects seen enough to be detectable.
 pub fn truth_boxes(src: &SimSource, out: &mut Vec<BBox>) {
+    out.clear();
+    out.extend(src.truth().iter().filter(|o| detectable(o)).map(|o| BBox {
+        x0: o.bbox[0],
+        y0: o.bbox[1],
+        x1: o.bbox[2],
+        y1: o.bbox[3],
+    }));
+}
+
+/// Which of the [`truth_boxes`] are scored as people: walking people at
+/// least 90 % visible (someone standing since frame 0 is background to
+/// any background model; other objects still count for isolation and
+/// false regions).
+pub fn scored_people(src: &SimSource, out: &mut Vec<bool>) {
     out.clear();
     out.extend(
         src.truth()
             .iter()
-            .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
-            .map(|o| BBox {
-                x0: o.bbox[0],
-                y0: o.bbox[1],
-                x1: o.bbox[2],
-                y1: o.bbox[3],
-            }),
+            .filter(|o| detectable(o))
+            .map(|o| o.kind == Kind::Person && o.walking && o.visible_fraction >= 0.9),
     );
+}
+
+/// Why an isolated truth box was not matched (IoU < 0.5 with every region).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Miss {
+    /// No region touches the box.
+    None,
+    /// The best region also covers another truth object.
+    Merged,
+    /// Two or more regions lie mostly inside the box.
+    Split,
+    /// One region, shorter than ¾ or narrower than 0.6 of the box.
+    Partial,
+    /// One region, taller than 1.25 or wider than 1.4 times the box,
+    /// touching no other truth object (shadow, ghost, unannotated thing).
+    Grown,
+    /// About the right size but shifted.
+    Offset,
+}
+
+impl Miss {
+    /// Every class, in report order.
+    pub const ALL: [Miss; 6] = [
+        Miss::None,
+        Miss::Merged,
+        Miss::Split,
+        Miss::Partial,
+        Miss::Grown,
+        Miss::Offset,
+    ];
+}
+
+fn box_area(b: &BBox) -> u32 {
+    b.width() * b.height()
+}
+
+/// Classifies truth box `i` (isolated) against the frame's regions;
+/// `None` when it is matched.
+pub fn classify_miss(i: usize, truth: &[BBox], regions: &[Region]) -> Option<Miss> {
+    let t = &truth[i];
+    let Some(best) = regions
+        .iter()
+        .max_by(|a, b| iou(t, &a.bbox).total_cmp(&iou(t, &b.bbox)))
+    else {
+        return Some(Miss::None);
+    };
+    let best_iou = iou(t, &best.bbox);
+    if best_iou >= 0.5 {
+        return None;
+    }
+    if best_iou == 0.0 {
+        return Some(Miss::None);
+    }
+    let b = best.bbox;
+    let merged = truth
+        .iter()
+        .enumerate()
+        .any(|(j, o)| j != i && overlap(&b, o) * 4 >= box_area(o));
+    if merged {
+        return Some(Miss::Merged);
+    }
+    let parts = regions
+        .iter()
+        .filter(|r| overlap(&r.bbox, t) * 2 >= box_area(&r.bbox))
+        .count();
+    let (th, tw, rh, rw) = (
+        f64::from(t.height()),
+        f64::from(t.width()),
+        f64::from(b.height()),
+        f64::from(b.width()),
+    );
+    Some(if parts >= 2 {
+        Miss::Split
+    } else if rh < 0.75 * th || rw < 0.6 * tw {
+        Miss::Partial
+    } else if rh > 1.25 * th || rw > 1.4 * tw {
+        Miss::Grown
+    } else {
+        Miss::Offset
+    })
 }

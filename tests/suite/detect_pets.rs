@@ -124,9 +124,11 @@ fn isolated_people_are_found_on_pets() {
         score.isolated > 200,
         "too few isolated people scored: {score:?}"
     );
-    // Measured 73.2 % (frames 50..300; 80.8 % over 50..795): see bench/RESULTS.md.
-    assert!(score.recall() >= 0.65, "{score:?}");
-    assert!(score.false_per_frame() <= 1.0, "{score:?}");
+    // Measured 87.7 %, 0.54 false/frame (frames 50..300; 90.0 % over
+    // 50..795; 73.2 % before the shadow-chroma test and region splitting):
+    // see bench/RESULTS.md.
+    assert!(score.recall() >= 0.8, "{score:?}");
+    assert!(score.false_per_frame() <= 0.8, "{score:?}");
     assert_eq!(gains, 0, "PETS has no global gain change");
 }
 

@@ -1,11 +1,10 @@
 //! Detection on the simulated scenes (exact truth boxes): fixed point vs
 //! float, isolated people found, and shadows not growing the boxes.
 
-use crate::detect_support::{agreement, truth_boxes, FloatGmm, Score};
+use crate::detect_support::{agreement, scored_people, truth_boxes, FloatGmm, Score};
 use stature::detect::morphology::BitMask;
 use stature::detect::{DetectConfig, Detector, RegionSet};
 use stature::frame::Frame;
-use stature::source::sim::people::Kind;
 use stature::source::sim::SimSource;
 use stature::source::{FrameSource, Next};
 
@@ -34,6 +33,7 @@ fn run(uri: &str, with_float: bool) -> (Score, f64) {
     let mut frame = Frame::new(size);
     let mut score = Score::default();
     let mut truth = Vec::new();
+    let mut people = Vec::new();
     let (mut agree, mut total) = (0u64, 0u64);
     for i in 0..FRAMES {
         assert_eq!(src.next_frame(&mut frame).expect("frame"), Next::Frame);
@@ -46,16 +46,7 @@ fn run(uri: &str, with_float: bool) -> (Score, f64) {
         }
         if i >= WARM_UP {
             truth_boxes(&src, &mut truth);
-            // Only walking, ≥ 90 % visible people are scored as "isolated
-            // people" (someone standing since frame 0 is background to any
-            // background model); other objects still count for isolation
-            // and false regions.
-            let people: Vec<bool> = src
-                .truth()
-                .iter()
-                .filter(|o| o.visible_fraction >= 0.5 && o.visible_px >= 100)
-                .map(|o| o.kind == Kind::Person && o.walking && o.visible_fraction >= 0.9)
-                .collect();
+            scored_people(&src, &mut people);
             score.add_filtered(&truth, &people, out.regions());
         }
     }
@@ -80,11 +71,12 @@ fn sim_low_scene() {
     report("sim:low", &s, agree);
     assert!(agree >= 0.99, "agreement {agree}");
     assert!(s.isolated > 100, "{s:?}");
-    // Measured 65.5 % matched, 0.71 false/frame with the chroma term (42.7 %,
-    // 0.58 luma only; still below the 90 % target: see bench/RESULTS.md);
-    // floors catch regressions.
-    assert!(s.recall() >= 0.55, "{s:?}");
-    assert!(s.false_per_frame() <= 1.0, "{s:?}");
+    // Measured 73.6 % matched, 0.68 false/frame (65.5 % before the
+    // shadow-chroma test, vertical shadow fill and region splitting; still
+    // below the 90 % target: grey clothes on grey paving, see
+    // bench/RESULTS.md); floors catch regressions.
+    assert!(s.recall() >= 0.66, "{s:?}");
+    assert!(s.false_per_frame() <= 0.9, "{s:?}");
 }
 
 #[test]
@@ -93,10 +85,10 @@ fn sim_plaza_scene_with_shadows() {
     report("sim:plaza shadows", &s, agree);
     assert!(agree >= 0.99, "agreement {agree}");
     assert!(s.isolated > 100, "{s:?}");
-    // Measured 74.8 % matched, 0.57 false/frame with the chroma term (25.5 %,
-    // 0.11 luma only).
-    assert!(s.recall() >= 0.65, "{s:?}");
-    assert!(s.false_per_frame() <= 0.8, "{s:?}");
+    // Measured 96.5 % matched, 0.52 false/frame (74.8 %, 0.57 with the L1
+    // chroma term alone; 25.5 %, 0.11 luma only).
+    assert!(s.recall() >= 0.9, "{s:?}");
+    assert!(s.false_per_frame() <= 0.7, "{s:?}");
 }
 
 /// The same clip with and without moving shadows: the boxes do not grow by
@@ -107,16 +99,34 @@ fn shadows_do_not_grow_boxes() {
     let (without, _) = run("sim:plaza?seed=1&shadows=0", false);
     report("sim:plaza shadows=1", &with, 1.0);
     report("sim:plaza shadows=0", &without, 1.0);
-    // Measured: mean IoU 0.637 with shadows vs 0.706 without; matched
-    // 74.8 % vs 81.2 % (luma only: 0.409 vs 0.425, 25.5 % vs 30.2 %). The
-    // chroma term marks part of a shadow on coloured paving (its chroma
-    // shifts with the darkening), so the IoU gap widened.
+    // Measured: mean IoU 0.818 with shadows vs 0.858 without; matched
+    // 96.5 % vs 96.7 % (L1 chroma term alone: 0.637 vs 0.706, 74.8 % vs
+    // 81.2 %; luma only: 0.409 vs 0.425, 25.5 % vs 30.2 %).
     assert!(
-        with.mean_iou() >= without.mean_iou() - 0.09,
+        with.mean_iou() >= without.mean_iou() - 0.07,
         "{with:?} vs {without:?}"
     );
     assert!(
-        with.recall() >= without.recall() - 0.08,
+        with.recall() >= without.recall() - 0.04,
         "{with:?} vs {without:?}"
     );
+}
+
+/// The other scenes (no float reference: the two above cover it): floors
+/// a few points under what is measured (bench/RESULTS.md, "Detection").
+#[test]
+fn sim_other_scenes() {
+    // (scene, matched floor, false/frame ceiling) // measured
+    for (uri, floor, ceiling) in [
+        ("sim:mid?seed=1", 0.9, 0.4),   // 97.2 %, 0.20
+        ("sim:high?seed=1", 0.88, 0.6), // 93.8 %, 0.44
+        ("sim:wide?seed=1", 0.7, 0.3),  // 76.6 %, 0.16
+        ("sim:busy?seed=1", 0.76, 2.0), // 83.7 %, 1.51
+    ] {
+        let (s, _) = run(uri, false);
+        report(uri, &s, 1.0);
+        assert!(s.isolated > 100, "{uri}: {s:?}");
+        assert!(s.recall() >= floor, "{uri}: {s:?}");
+        assert!(s.false_per_frame() <= ceiling, "{uri}: {s:?}");
+    }
 }
