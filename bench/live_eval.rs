@@ -474,7 +474,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     }
     let ccfg = CalibrateConfig {
         camera_height_m: st.camera_height_m,
-        ..Default::default()
+        ..cfg.calibrate.clone()
     };
     let live: Vec<(u64, u32, HeadFoot)> =
         events.iter().map(|e| (e.frame, e.track, e.live)).collect();

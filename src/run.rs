@@ -144,7 +144,7 @@ impl Pipeline {
         let est = self.calib.estimate().copied();
         let interval = u64::from(self.measurer.config().report_interval);
         for t in self.tracker.tracks_mut() {
-            let due = t.ended || all || (t.fresh.is_some() && frame >= t.last_report + interval);
+            let due = t.ended || all || (t.sampled && frame >= t.last_report + interval);
             if !due {
                 continue;
             }

@@ -281,6 +281,11 @@ pub struct Region {
     pub foot: [f32; 2],
     /// The region touches the image border.
     pub touches_border: bool,
+    /// The region is a part of a larger one cut at a column (people side
+    /// by side, [`DetectConfig::split_valley`]): its side at the cut is a
+    /// straight image column by construction, not the person's outline,
+    /// so its silhouette axis leans toward the image vertical.
+    pub split: bool,
     /// Its run-length mask: indices into [`RegionSet::runs`], sorted by row.
     pub runs: core::ops::Range<u32>,
 }

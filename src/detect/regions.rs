@@ -287,6 +287,7 @@ impl Labeller {
                 head,
                 foot: foot(runs),
                 touches_border: touches(bbox, w, h),
+                split: false,
                 runs: 0..0,
             };
             // A full set counts the overflow itself.
@@ -329,7 +330,8 @@ impl Labeller {
                     });
                 }
             }
-            if let Some(region) = region_of(&self.part, w, h) {
+            if let Some(mut region) = region_of(&self.part, w, h) {
+                region.split = true;
                 if region.area >= min_area {
                     let _ = out.push(region, &self.part);
                 }
@@ -459,6 +461,7 @@ fn region_of(runs: &[Run], w: usize, h: usize) -> Option<Region> {
         ],
         foot: foot(runs),
         touches_border: touches(bbox, w, h),
+        split: false,
         runs: 0..0,
     })
 }
@@ -685,12 +688,14 @@ mod tests {
         let mut out = RegionSet::with_capacity(8, 256);
         l.label(&m, 5, &mut out);
         assert_eq!(out.regions().len(), 1, "without splitting: one region");
+        assert!(!out.regions()[0].split);
         l.set_split(0.55);
         out.clear();
         l.label(&m, 5, &mut out);
         let r = out.regions();
         assert_eq!(r.len(), 2, "{r:?}");
         assert!(r[0].bbox.x1 < r[1].bbox.x0);
+        assert!(r[0].split && r[1].split);
         assert_eq!((r[0].head, r[1].head), ([4.0, 1.0], [14.0, 1.0]));
         assert_runs_cover_regions(&out);
         // A walker: torso columns 4..=10 on rows 0..=9, legs apart below.

@@ -1,5 +1,6 @@
 //! The body axis of a person's silhouette: the line through the centres of
-//! its rows, fitted robustly. Head and foot points are taken on it.
+//! its rows, fitted robustly, with its lean corrected for the body's shape
+//! ([`body_axis`]). Head and foot points are taken on it.
 //!
 //! Why: the paper's head point is the top-most region pixel and its foot
 //! the mean of the bottom-most ten (eq. 5). Their rows are well defined,
@@ -96,9 +97,10 @@ fn fit(runs: &[Run], w: impl Fn(f64, f64) -> f64) -> Option<(Axis, usize)> {
     ))
 }
 
-/// The body axis of a region's run-length mask; `None` when it has fewer
-/// than a handful of rows.
-pub fn body_axis(runs: &[Run]) -> Option<Axis> {
+/// The line through the row centres of a region's run-length mask
+/// (robust: rows far off it, a swinging arm or a shadow at the feet, are
+/// down-weighted); `None` when it has fewer than a handful of rows.
+pub fn row_axis(runs: &[Run]) -> Option<Axis> {
     let (mut axis, _) = fit(runs, |_, _| 1.0)?;
     for _ in 0..REWEIGHT_PASSES {
         // Scale of the residuals about the current fit.
@@ -124,6 +126,63 @@ pub fn body_axis(runs: &[Run]) -> Option<Axis> {
     Some(axis)
 }
 
+/// The body axis of a region's run-length mask: the row-centre line
+/// ([`row_axis`]) with its lean corrected for the shape of the body.
+///
+/// The centres of parallel chords of an ellipse lie on the diameter
+/// conjugate to the chords, not on its axis: across a tilted elliptical
+/// body the row centres lean toward the image vertical by the fraction
+/// `k²`, the squared width-to-height ratio. A person is closer to an
+/// ellipse than to a strip (narrow at head and feet): measured on PETS
+/// 2009 against the real calibration's verticals, row centres under-read
+/// the lean of the verticals by 19 %, which put the vertical vanishing
+/// point 20 % too far and the tilt 2° low. Dividing the lean by `1 − k²`,
+/// with `k²` from the silhouette's second moments, left 10 % (and 6 %
+/// within a track). The plain principal axis of the pixels measured worse
+/// there, being pulled by every asymmetric blob the row fit ignores.
+pub fn body_axis(runs: &[Run]) -> Option<Axis> {
+    let mut axis = row_axis(runs)?;
+    if let Some(k2) = aspect2(runs) {
+        axis.slope /= 1.0 - k2;
+    }
+    Some(axis)
+}
+
+/// Squared width-to-height ratio of the ellipse with the second moments
+/// of `runs`' pixels (minor over major eigenvalue of their covariance),
+/// capped at 0.9; `None` for an empty mask.
+pub fn aspect2(runs: &[Run]) -> Option<f64> {
+    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for r in runs {
+        let (a, b, y) = (f64::from(r.x0), f64::from(r.x1), f64::from(r.y));
+        let len = b - a + 1.0;
+        let s1 = len * (a + b) / 2.0;
+        // Sum of x² over the columns a..=b.
+        let s2 = (b * (b + 1.0) * (2.0 * b + 1.0) - (a - 1.0) * a * (2.0 * a - 1.0)) / 6.0;
+        n += len;
+        sx += s1;
+        sy += y * len;
+        sxx += s2;
+        syy += y * y * len;
+        sxy += y * s1;
+    }
+    if n < 1.0 {
+        return None;
+    }
+    let (mx, my) = (sx / n, sy / n);
+    let (cxx, cyy, cxy) = (sxx / n - mx * mx, syy / n - my * my, sxy / n - mx * my);
+    let half_tr = 0.5 * (cxx + cyy);
+    let disc = (half_tr * half_tr - (cxx * cyy - cxy * cxy))
+        .max(0.0)
+        .sqrt();
+    let (major, minor) = (half_tr + disc, half_tr - disc);
+    (major > 0.0).then(|| (minor / major).clamp(0.0, MAX_ASPECT2))
+}
+
+/// Cap of [`aspect2`]: rounder shapes than this are not upright people,
+/// and the correction `1 / (1 − k²)` must stay bounded.
+const MAX_ASPECT2: f64 = 0.9;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -147,7 +206,7 @@ mod tests {
     #[test]
     fn recovers_a_slanted_bar() {
         let runs = bar(10, 110, 50.0, 0.08, 9);
-        let a = body_axis(&runs).unwrap();
+        let a = row_axis(&runs).unwrap();
         assert!((a.slope - 0.08).abs() < 0.005, "{a:?}");
         assert!((a.x_at(10.0) - 50.0).abs() < 0.6, "{a:?}");
     }
@@ -160,7 +219,7 @@ mod tests {
         for r in runs.iter_mut().skip(92) {
             r.x1 += 30;
         }
-        let a = body_axis(&runs).unwrap();
+        let a = row_axis(&runs).unwrap();
         assert!(a.slope.abs() < 0.01, "{a:?}");
         assert!((a.x_at(99.0) - 40.0).abs() < 1.0, "{a:?}");
         // The plain least-squares fit is pulled over by the blob.
@@ -189,6 +248,52 @@ mod tests {
         assert!(
             a.slope.abs() < 0.01 && (a.x_at(99.0) - 30.0).abs() < 0.6,
             "{a:?}"
+        );
+    }
+
+    /// Runs of an ellipse with semi-axes `b` (across) and `a` (along),
+    /// its long axis leaning `angle` radians from the image vertical.
+    fn ellipse(cx: f64, cy: f64, a: f64, b: f64, angle: f64) -> Vec<Run> {
+        let (s, c) = (libm::sin(angle), libm::cos(angle));
+        let mut runs = Vec::new();
+        for y in (cy - a - 2.0) as u16..=(cy + a + 2.0) as u16 {
+            let mut start = None;
+            for x in 0..=400u16 {
+                let (dx, dy) = (f64::from(x) - cx, f64::from(y) - cy);
+                // Into the ellipse's own frame (u across, v along).
+                let (u, v) = (dx * c - dy * s, dx * s + dy * c);
+                let inside = (u / b).powi(2) + (v / a).powi(2) <= 1.0;
+                match (inside, start) {
+                    (true, None) => start = Some(x),
+                    (false, Some(x0)) => {
+                        runs.push(Run { y, x0, x1: x - 1 });
+                        start = None;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        runs
+    }
+
+    #[test]
+    fn the_lean_of_an_elliptical_body_is_not_under_read() {
+        // 1:3 ellipse leaning 8°: row centres lie on the conjugate
+        // diameter, about k² = 1/9 less tilted; the corrected axis is not.
+        let angle = 8f64.to_radians();
+        let runs = ellipse(200.0, 100.0, 60.0, 20.0, angle);
+        let truth = libm::tan(angle);
+        let rows = row_axis(&runs).unwrap();
+        let body = body_axis(&runs).unwrap();
+        assert!(
+            (rows.slope / truth - (1.0 - 1.0 / 9.0)).abs() < 0.03,
+            "rows {} vs {truth}",
+            rows.slope
+        );
+        assert!(
+            (body.slope / truth - 1.0).abs() < 0.03,
+            "{} vs {truth}",
+            body.slope
         );
     }
 

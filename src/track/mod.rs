@@ -153,8 +153,11 @@ pub struct Track {
     hist: Hist,
     /// Accepted head/foot samples, newest last.
     pub samples: HistoryBuffer<HeadFoot, RING>,
-    /// Sample accepted this frame (for calibration), if any.
+    /// Sample accepted this frame for calibration, if any (a sample from a
+    /// region split off a larger one goes to [`Track::samples`] only).
     pub fresh: Option<HeadFoot>,
+    /// A sample was added to [`Track::samples`] this frame.
+    pub sampled: bool,
     /// Latest head/foot of a snapped region (accepted or not), pixels.
     pub last: HeadFoot,
     /// Frame of `last`.
@@ -272,6 +275,7 @@ impl Tracker {
         // 1. Particle filter, then eq. 4 against every region.
         for t in self.tracks.iter_mut() {
             t.fresh = None;
+            t.sampled = false;
             pf_step(
                 t,
                 &self.cfg,
@@ -388,6 +392,7 @@ impl Tracker {
                 hist: [0.0; MAX_BINS],
                 samples: HistoryBuffer::new(),
                 fresh: None,
+                sampled: false,
                 last: HeadFoot::default(),
                 last_seen: frame_no,
                 age: 0,
@@ -621,7 +626,12 @@ fn snap(
         e
     };
     t.samples.write(hf);
-    t.fresh = Some(hf);
+    t.sampled = true;
+    // A region cut out of a larger one has a straight column for a side:
+    // its height is sound, its lean is not (calibration takes no sample).
+    if !r.split {
+        t.fresh = Some(hf);
+    }
 }
 
 #[cfg(test)]

@@ -71,6 +71,7 @@ fn region(set: &mut RegionSet, people: &[Person]) {
         head: [cx, bx[1] as f32],
         foot: [cx, bx[3] as f32],
         touches_border: bx[0] == 0 || bx[1] == 0 || bx[2] == W as i32 - 1 || bx[3] == H as i32 - 1,
+        split: false,
         runs: 0..0,
     };
     set.push(r, &runs).unwrap();
