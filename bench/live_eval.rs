@@ -15,14 +15,11 @@
 //! told apart.
 
 use stature::calibrate::geometry::HeadFoot;
+use stature::calibrate::live::{iou, run_sim};
 use stature::calibrate::{CalibrateConfig, Calibrator};
 use stature::config::Config;
-use stature::report::Reporter;
 use stature::rng::Rng;
-use stature::run::Pipeline;
 use stature::source::sim::people::Kind;
-use stature::source::sim::SimSource;
-use stature::source::FrameSource;
 use std::collections::BTreeMap;
 
 struct Event {
@@ -30,14 +27,6 @@ struct Event {
     track: u32,
     live: HeadFoot,
     truth: Option<(Kind, u32, HeadFoot, f64)>,
-}
-
-fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
-    let ix = (a[2].min(b[2]) - a[0].max(b[0]) + 1.0).max(0.0);
-    let iy = (a[3].min(b[3]) - a[1].max(b[1]) + 1.0).max(0.0);
-    let i = ix * iy;
-    let area = |r: [f64; 4]| (r[2] - r[0] + 1.0) * (r[3] - r[1] + 1.0);
-    i / (area(a) + area(b) - i)
 }
 
 fn stats(v: &[f64]) -> (f64, f64) {
@@ -75,15 +64,6 @@ fn calibrate(events: &[(u64, u32, HeadFoot)], cfg: &CalibrateConfig, w: usize, h
     }
 }
 
-/// True standing height of every person of the cast.
-fn sim_heights(sim: &SimSource) -> BTreeMap<u32, f64> {
-    sim.cast()
-        .iter()
-        .filter(|m| m.kind == Kind::Person)
-        .map(|m| (m.id, m.height_m))
-        .collect()
-}
-
 fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     let mut q = match frames {
         Some(n) => format!("seed={seed}&frames={n}"),
@@ -92,110 +72,111 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     if !extra.is_empty() {
         q = format!("{q}&{extra}");
     }
-    let mut sim = SimSource::open(scene, &q).expect("scene");
-    let st = sim.scene_truth().clone();
-    let cam = st.camera();
     let cfg = Config::from_toml(toml).expect("--toml");
-    let info = sim.info().clone();
-    let mut p = Pipeline::new(&cfg, &info);
-    let (w_px, h_px) = (info.size.width as f64, info.size.height as f64);
-    let (mut reporter, rx, _) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
-    let drain = std::thread::spawn(move || rx.iter().count());
-    let mut events: Vec<Event> = Vec::new();
     // Where isolated, fully visible walkers are lost: [frames, with a
     // region of IoU >= 0.5, that region called single, a track snapped to
     // it this frame (sample given), a track on it but merged/coasting].
     let mut funnel = [0u64; 5];
-    for k in 0..sim.frames() {
-        sim.render(k, &mut p.frame);
-        p.process(&mut reporter);
-        {
-            let (set, verdicts) = p.regions();
-            let truth = sim.truth();
-            for o in truth {
-                if o.kind != Kind::Person || o.visible_fraction < 0.98 || !o.walking {
-                    continue;
-                }
-                let ob = o.bbox.map(f64::from);
-                let alone = truth.iter().all(|q| {
-                    q.id == o.id || q.visible_px < 50 || iou(ob, q.bbox.map(f64::from)) <= 0.0
-                });
-                let inside = ob[0] > 2.0 && ob[1] > 2.0 && ob[2] < w_px - 3.0 && ob[3] < h_px - 3.0;
-                if !alone || !inside {
-                    continue;
-                }
-                funnel[0] += 1;
-                let best = set
-                    .regions()
-                    .iter()
-                    .enumerate()
-                    .map(|(j, r)| {
-                        let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
-                        (iou(ob, rb), j)
-                    })
-                    .max_by(|a, b| a.0.total_cmp(&b.0));
-                let Some((v, j)) = best else { continue };
-                if v < 0.5 {
-                    continue;
-                }
-                funnel[1] += 1;
-                if verdicts.get(j).is_some_and(|x| x.single_human) {
-                    funnel[2] += 1;
-                }
-                let r = &set.regions()[j];
-                let on = p.tracker().tracks().iter().find(|t| {
-                    let tb = [t.bbox.x0, t.bbox.y0, t.bbox.x1, t.bbox.y1].map(f64::from);
-                    let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
-                    iou(tb, rb) > 0.5
-                });
-                match on {
-                    Some(t) if t.fresh.is_some() => funnel[3] += 1,
-                    Some(_) => funnel[4] += 1,
-                    None => {}
-                }
+    let run = run_sim(&format!("sim:{scene}?{q}"), &cfg, |p, sim| {
+        let (w_px, h_px) = (p.frame.size().width as f64, p.frame.size().height as f64);
+        let (set, verdicts) = p.regions();
+        let truth = sim.truth();
+        for o in truth {
+            if o.kind != Kind::Person || o.visible_fraction < 0.98 || !o.walking {
+                continue;
             }
-        }
-        for t in p.tracker().tracks() {
-            let Some(hf) = t.fresh else { continue };
-            let tb = [
-                f64::from(t.bbox.x0),
-                f64::from(t.bbox.y0),
-                f64::from(t.bbox.x1),
-                f64::from(t.bbox.y1),
-            ];
-            let mut best: Option<(f64, Kind, u32, HeadFoot, f64)> = None;
-            for o in sim.truth() {
-                let ob = o.bbox.map(f64::from);
-                let v = iou(tb, ob);
-                if v > 0.2 && best.as_ref().is_none_or(|b| v > b.0) {
-                    best = Some((
-                        v,
-                        o.kind,
-                        o.id,
-                        HeadFoot {
-                            head: o.head_px,
-                            foot: o.foot_px,
-                        },
-                        o.visible_fraction,
-                    ));
-                }
-            }
-            events.push(Event {
-                frame: k,
-                track: t.id,
-                live: hf,
-                truth: best.map(|b| (b.1, b.2, b.3, b.4)),
+            let ob = o.bbox.map(f64::from);
+            let alone = truth.iter().all(|q| {
+                q.id == o.id || q.visible_px < 50 || iou(ob, q.bbox.map(f64::from)) <= 0.0
             });
+            let inside = ob[0] > 2.0 && ob[1] > 2.0 && ob[2] < w_px - 3.0 && ob[3] < h_px - 3.0;
+            if !alone || !inside {
+                continue;
+            }
+            funnel[0] += 1;
+            let best = set
+                .regions()
+                .iter()
+                .enumerate()
+                .map(|(j, r)| {
+                    let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
+                    (iou(ob, rb), j)
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            let Some((v, j)) = best else { continue };
+            if v < 0.5 {
+                continue;
+            }
+            funnel[1] += 1;
+            if verdicts.get(j).is_some_and(|x| x.single_human) {
+                funnel[2] += 1;
+            }
+            let r = &set.regions()[j];
+            let on = p.tracker().tracks().iter().find(|t| {
+                let tb = [t.bbox.x0, t.bbox.y0, t.bbox.x1, t.bbox.y1].map(f64::from);
+                let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
+                iou(tb, rb) > 0.5
+            });
+            match on {
+                Some(t) if t.fresh.is_some() => funnel[3] += 1,
+                Some(_) => funnel[4] += 1,
+                None => {}
+            }
         }
-    }
-    p.finish(&mut reporter);
-    drop(reporter);
-    drain.join().unwrap();
-
+    })
+    .expect("scene");
+    let st = run.scene.clone();
+    let cam = st.camera();
+    let events: Vec<Event> = run
+        .observations
+        .iter()
+        .map(|o| Event {
+            frame: o.frame,
+            track: o.track,
+            live: o.live,
+            truth: o.truth.map(|m| (m.kind, m.id, m.truth, m.visible)),
+        })
+        .collect();
+    println!(
+        "== {scene}:{seed} ({} observations): true f {:.1} tilt {:.2} roll {:.2} hc {:.2} vvp ({:.1},{:.1})",
+        events.len(),
+        cam.f,
+        st.tilt_deg,
+        st.roll_deg,
+        st.camera_height_m,
+        st.vertical_vp[0],
+        st.vertical_vp[1]
+    );
     println!(
         "  isolated walkers: {} person-frames, region IoU>=0.5 {}, called single {}, sampled by a track {}, track on it without a sample {}",
         funnel[0], funnel[1], funnel[2], funnel[3], funnel[4]
     );
+    if let Ok(path) = std::env::var("DUMP") {
+        use std::io::Write;
+        let mut out = std::fs::File::create(&path).expect("DUMP file");
+        writeln!(out, "frame,track,hx,hy,fx,fy,kind,id,thx,thy,tfx,tfy").unwrap();
+        for e in &events {
+            let (k, id, t) = match e.truth {
+                Some((k, id, t, _)) => (k as u8, id, t),
+                None => (9, 0, HeadFoot::default()),
+            };
+            writeln!(
+                out,
+                "{},{},{:.2},{:.2},{:.2},{:.2},{k},{id},{:.2},{:.2},{:.2},{:.2}",
+                e.frame,
+                e.track,
+                e.live.head[0],
+                e.live.head[1],
+                e.live.foot[0],
+                e.live.foot[1],
+                t.head[0],
+                t.head[1],
+                t.foot[0],
+                t.foot[1]
+            )
+            .unwrap();
+        }
+    }
     let (w, h) = (st.width, st.height);
     let (mut person, mut dog, mut car, mut none) = (0, 0, 0, 0);
     let (mut hx, mut hy, mut fx, mut fy, mut ext, mut ang) =
@@ -227,16 +208,6 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
             }
         }
     }
-    println!(
-        "== {scene}:{seed} ({} frames): true f {:.1} tilt {:.2} roll {:.2} hc {:.2} vvp ({:.1},{:.1})",
-        sim.frames(),
-        cam.f,
-        st.tilt_deg,
-        st.roll_deg,
-        st.camera_height_m,
-        vvp[0],
-        vvp[1]
-    );
     println!(
         "observations {}: person {person}, dog {dog}, car {car}, nothing {none}",
         events.len()
@@ -442,36 +413,31 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         people.len(),
         100.0 * maj as f64 / tot.max(1) as f64
     );
-    // The pipeline's own final heights against the truth of each track's
-    // majority person.
+    let hs = run.heights();
     {
-        let heights: BTreeMap<u32, f64> = sim_heights(&sim);
-        let mut errs = Vec::new();
-        for hr in &p.final_heights {
-            let Some(m) = by_track.get(&hr.track_id) else {
-                continue;
-            };
-            let Some((&pid, _)) = m.iter().max_by_key(|x| x.1) else {
-                continue;
-            };
-            if let Some(t) = heights.get(&pid) {
-                errs.push((f64::from(hr.height_m) - t, pid));
+        let maj = run.majority();
+        for h in &run.final_heights {
+            if let Some((k, id)) = maj.get(&h.track_id) {
+                if *k != Kind::Person {
+                    println!("  NON-PERSON height: track {} -> {:?} {id}: {:.2} m from {} samples, bbox {:?}", h.track_id, k, h.height_m, h.samples, h.bbox);
+                }
             }
         }
-        let mut abs: Vec<f64> = errs.iter().map(|e| e.0.abs()).collect();
-        abs.sort_by(f64::total_cmp);
-        let ids: std::collections::BTreeSet<u32> = errs.iter().map(|e| e.1).collect();
-        let signed = errs.iter().map(|e| e.0).sum::<f64>() / errs.len().max(1) as f64;
-        println!(
-            "  pipeline final heights: {} records of {} people; |err| median {:.3} p90 {:.3} m, mean signed {:+.3} m (scale: {})",
-            errs.len(),
-            ids.len(),
-            stature::calibrate::eval::quantile(&abs, 0.5),
-            stature::calibrate::eval::quantile(&abs, 0.9),
-            signed,
-            if cfg.calibrate.camera_height_m > 0.0 { "camera height" } else { "prior" }
-        );
     }
+    println!(
+        "  pipeline final heights: {} records of {} people; |err| median {:.3} p90 {:.3} m, mean signed {:+.3} m; scale-free median {:.4} p90 {:.4}; recall (seen >= 3 s) {}/{}; dog/car heights {} (scale: {})",
+        hs.records,
+        hs.people,
+        hs.abs_median,
+        hs.abs_p90,
+        hs.signed_mean,
+        hs.scale_free_median,
+        hs.scale_free_p90,
+        hs.measured,
+        hs.eligible,
+        hs.non_person,
+        if cfg.calibrate.camera_height_m > 0.0 { "camera height" } else { "prior" }
+    );
     let ccfg = CalibrateConfig {
         camera_height_m: st.camera_height_m,
         ..cfg.calibrate.clone()

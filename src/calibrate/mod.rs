@@ -29,6 +29,7 @@
 pub mod eval;
 pub mod geometry;
 pub mod horizon;
+pub mod live;
 pub mod state;
 pub mod synth;
 pub mod vertical;
@@ -162,8 +163,8 @@ impl CalibrateConfig {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ScaleMode {
     /// (a) The people seen have this mean height (the paper uses 1.8 m; we
-    /// default to 1.70 m). Camera height = prior / mean over tracks of each
-    /// track's median relative height. Absolute heights inherit the prior's
+    /// default to 1.70 m). Camera height = prior / interquartile mean over
+    /// tracks of each track's median relative height. Absolute heights inherit the prior's
     /// error; relative heights do not.
     PopulationPrior(f64),
     /// (b) The camera is mounted this high: heights are absolute, with
@@ -650,16 +651,24 @@ impl Calibrator {
         match self.cfg.scale_mode() {
             ScaleMode::CameraHeight(h) => Some(h),
             ScaleMode::PopulationPrior(mean) => {
-                let (mut sum, mut n) = (0.0, 0usize);
+                // Each track's median height ratio; the interquartile mean
+                // over tracks, so that a dog, a fragment or two people
+                // merged into one track do not move the scale.
+                let mut n = 0usize;
                 for s in 0..self.slots.len() {
-                    if self.slots[s].used && self.slots[s].len >= 3 {
+                    if self.slots[s].used && self.slots[s].len >= 3 && n < self.scratch.len() {
                         if let Some(r) = self.median_ratio(s, geom) {
-                            sum += r;
+                            self.scratch[n] = r;
                             n += 1;
                         }
                     }
                 }
-                (n > 0 && sum > 0.0).then(|| mean / (sum / n as f64))
+                let rs = &mut self.scratch[..n];
+                rs.sort_unstable_by(f64::total_cmp);
+                let (lo, hi) = if n >= 4 { (n / 4, n - n / 4) } else { (0, n) };
+                let mid = &rs[lo..hi];
+                let m = mid.iter().sum::<f64>() / mid.len().max(1) as f64;
+                (n > 0 && m > 0.0).then(|| mean / m)
             }
             ScaleMode::ReferencePerson(h) => {
                 let mut best: Option<usize> = None;

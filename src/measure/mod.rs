@@ -40,6 +40,13 @@ pub struct MeasureConfig {
     pub min_samples: usize,
     /// Frames between height records of a live track.
     pub report_interval: u32,
+    /// Corrected heights below this are not reported, metres: what the
+    /// classifier let through that is not a standing person (a dog, about
+    /// 0.7 m; a person crouching). Small children are not measured either.
+    pub min_height_m: f64,
+    /// Corrected heights above this are not reported, metres (two people
+    /// one above the other in the image, a pole taken for a person).
+    pub max_height_m: f64,
     /// RANSAC seed.
     pub seed: u64,
 }
@@ -47,12 +54,14 @@ pub struct MeasureConfig {
 impl Default for MeasureConfig {
     fn default() -> Self {
         MeasureConfig {
-            min_confidence: 0.3,
+            min_confidence: 0.25,
             ransac_samples: 5,
             ransac_iterations: 50,
             inlier_m: 0.05,
             min_samples: 8,
             report_interval: 25,
+            min_height_m: 0.9,
+            max_height_m: 2.4,
             seed: 2,
         }
     }
@@ -71,6 +80,12 @@ impl MeasureConfig {
         check_range("measure.inlier_m", self.inlier_m, 0.005..=1.0)?;
         check_range("measure.min_samples", self.min_samples, 1..=4096)?;
         check_range("measure.report_interval", self.report_interval, 1..=100000)?;
+        check_range("measure.min_height_m", self.min_height_m, 0.0..=2.0)?;
+        check_range(
+            "measure.max_height_m",
+            self.max_height_m,
+            self.min_height_m.max(1.0)..=5.0,
+        )?;
         Ok(())
     }
 }
@@ -115,8 +130,9 @@ impl Measurer {
     }
 
     /// The corrected height of a track from its observations with the
-    /// current calibration; `None` before the calibration is confident or
-    /// with fewer than `min_samples` measurable observations.
+    /// current calibration; `None` before the calibration is confident,
+    /// with fewer than `min_samples` measurable observations, or outside
+    /// `min_height_m..=max_height_m`.
     pub fn track_height<'a>(
         &mut self,
         est: Option<&Estimate>,
@@ -138,6 +154,7 @@ impl Measurer {
             return None;
         }
         ransac_mean(&self.heights, &self.cfg, &mut self.rng)
+            .filter(|c| (self.cfg.min_height_m..=self.cfg.max_height_m).contains(&c.height))
     }
 }
 

@@ -129,3 +129,28 @@ fn heights_wait_for_confidence_and_follow_calibration_updates() {
     // Too few observations: nothing.
     assert!(m.track_height(Some(&e), obs[..3].iter()).is_none());
 }
+
+#[test]
+fn implausible_heights_are_not_reported() {
+    // A dog's track, measured like a person, reads about 0.7 m.
+    let cam = Camera::centred(700.0, 25.0, 0.0, 4.0, 640, 480);
+    let est = estimate(&cam, 1.0);
+    let obs: Vec<HeadFoot> = (0..20)
+        .map(|k| {
+            let y = 8.0 + 0.2 * f64::from(k);
+            HeadFoot {
+                head: cam.project([0.5, y, 0.7]).unwrap(),
+                foot: cam.project([0.5, y, 0.0]).unwrap(),
+            }
+        })
+        .collect();
+    let mut m = Measurer::new(&MeasureConfig::default(), 64);
+    assert_eq!(m.track_height(Some(&est), obs.iter()), None);
+    let open = MeasureConfig {
+        min_height_m: 0.5,
+        ..Default::default()
+    };
+    let mut m = Measurer::new(&open, 64);
+    let h = m.track_height(Some(&est), obs.iter()).unwrap();
+    assert!((h.height - 0.7).abs() < 1e-6, "{h:?}");
+}

@@ -34,6 +34,7 @@ mod detect_synthetic;
 mod faults;
 mod fuzz_corpus;
 mod geometry_props;
+mod live_accuracy;
 mod mqtt;
 mod sim_alloc;
 mod sim_geometry;

@@ -1,0 +1,110 @@
+//! The whole live pipeline, end to end: calibration and heights from the
+//! frames alone (detect → classify → track → calibrate → measure), on
+//! every simulated scene with a seed the pipeline was not tuned on and on
+//! PETS 2009 S2.L1 against its real calibration. The floors are
+//! conservative (bench/RESULTS.md, "End to end", has the measured numbers,
+//! from `cargo run --release --example live_eval`): they catch regressions,
+//! they do not claim the targets.
+
+use stature::calibrate::live::{run_pets, run_sim, LiveRun};
+use stature::config::Config;
+
+/// Seed 5: never looked at while the pipeline was tuned (seeds 1–4 were).
+const SEED: u64 = 5;
+
+fn run(scene: &str) -> LiveRun {
+    run_sim(
+        &format!("sim:{scene}?seed={SEED}"),
+        &Config::default(),
+        |_, _| {},
+    )
+    .expect("scene")
+}
+
+/// Floors of one scene: focal error, tilt and roll errors (degrees), and
+/// the median absolute height error in the default scale mode (a 1.70 m
+/// population prior against people drawn around 1.70 m).
+fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: f64) {
+    let r = run(scene);
+    let e = r.calibration_error().expect("a final calibration");
+    let h = r.heights();
+    println!("{scene}:{SEED}: {e:?}\n{scene}:{SEED}: {h:?}");
+    assert!(e.focal_rel.abs() <= max_focal, "{scene}: focal {e:?}");
+    assert!(e.tilt_deg.abs() <= max_tilt, "{scene}: tilt {e:?}");
+    assert!(e.roll_deg.abs() <= max_roll, "{scene}: roll {e:?}");
+    assert!(e.confidence >= 0.2, "{scene}: confidence {e:?}");
+    assert!(h.records >= 3, "{scene}: heights {h:?}");
+    assert!(h.abs_median <= max_height, "{scene}: heights {h:?}");
+    assert_eq!(h.non_person, 0, "{scene}: a dog or car was measured: {h:?}");
+    assert!(
+        h.measured * 5 >= h.eligible * 2,
+        "{scene}: recall of people seen 3 s {h:?}"
+    );
+}
+
+#[test]
+fn plaza_calibrates_and_measures() {
+    check("plaza", 0.15, 2.5, 1.5, 0.08);
+}
+
+#[test]
+fn low_camera_calibrates_and_measures() {
+    check("low", 0.15, 2.0, 1.5, 0.08);
+}
+
+#[test]
+fn mid_camera_calibrates_and_measures() {
+    check("mid", 0.15, 2.0, 1.5, 0.08);
+}
+
+#[test]
+fn high_camera_calibrates_and_measures() {
+    // The horizon of this steep view comes out low (bench/RESULTS.md): heights
+    // read 15 cm short on this seed.
+    check("high", 0.25, 3.0, 1.5, 0.22);
+}
+
+#[test]
+fn wide_lens_calibrates_and_measures() {
+    check("wide", 0.15, 2.5, 1.5, 0.10);
+}
+
+#[test]
+fn busy_1280x720_calibrates_and_measures() {
+    check("busy", 0.15, 3.0, 1.5, 0.10);
+}
+
+#[test]
+fn pets_calibrates_against_its_real_calibration() {
+    let Some(dir) = stature::dataset::require_shared_data("PETS end-to-end test") else {
+        return;
+    };
+    let r = run_pets(&dir, &Config::default()).expect("PETS run");
+    let c = r.calibration.clone().expect("a final calibration");
+    let t = r.truth;
+    let errors = r.abs_errors();
+    println!(
+        "PETS: f {} / {} px, tilt {} / {}, roll {} / {}, camera {} / {} m, {} heights matched ({} not), |err| {:?}",
+        c.f_px,
+        t.focal_px,
+        c.tilt_deg,
+        t.tilt_deg,
+        c.roll_deg,
+        t.roll_deg,
+        c.camera_height_m,
+        t.camera_height_m,
+        r.heights.len(),
+        r.unmatched,
+        errors
+    );
+    // Against the camera with its principal point at the image centre
+    // (the model's assumption), the equivalent of the real calibration.
+    assert!((f64::from(c.f_px) / t.focal_px - 1.0).abs() <= 0.08);
+    assert!((f64::from(c.tilt_deg) - t.tilt_deg).abs() <= 2.5);
+    assert!((f64::from(c.roll_deg) - t.roll_deg).abs() <= 1.5);
+    // Default scale mode: the 1.70 m prior against people around 1.77 m.
+    assert!((f64::from(c.camera_height_m) / t.camera_height_m - 1.0).abs() <= 0.15);
+    assert!(r.heights.len() >= 8, "{} heights", r.heights.len());
+    let median = errors[errors.len() / 2];
+    assert!(median <= 0.12, "median height error {median} m");
+}
