@@ -96,6 +96,11 @@ impl Axis {
     }
 }
 
+/// Widest run of source columns the vertical-first path blends (see
+/// [`Sampler::sample`]); a power of two, so masked offsets need no bounds
+/// check.
+const SPAN: usize = 2048;
+
 /// Resamples boxes into a bordered window; owns its scratch.
 #[derive(Clone, Debug)]
 pub struct Sampler {
@@ -103,6 +108,15 @@ pub struct Sampler {
     ys: Axis,
     w: usize,
     h: usize,
+    /// Per window column, its first source column minus the row's first.
+    offs: Vec<u16>,
+    /// Per window column, the Q8 weights of its two source columns.
+    wx: [Vec<u16>; 2],
+    /// One window row's two blended source columns per pixel.
+    taps: [Vec<u16>; 2],
+    /// The source columns of one window row blended vertically (Q8), one
+    /// spare entry so that `offset + 1` stays inside.
+    blend: Box<[u16; SPAN + 1]>,
 }
 
 impl Sampler {
@@ -115,6 +129,10 @@ impl Sampler {
             ys: Axis::with_len(h + 2),
             w,
             h,
+            offs: vec![0; w + 2],
+            wx: [vec![0; w + 2], vec![0; w + 2]],
+            taps: [vec![0; w + 2], vec![0; w + 2]],
+            blend: Box::new([0; SPAN + 1]),
         }
     }
 
@@ -134,32 +152,91 @@ impl Sampler {
     }
 
     /// Samples `rect` of `luma` into `out` (`len()` bytes, row stride
-    /// `stride()`). Bilinear in Q8 weights; the sum of four products is at
-    /// most 255·2^16 and rounds to nearest. Returns `false` (and leaves
-    /// `out` alone) for a plane under 2×2 pixels or a short `out`.
+    /// `stride()`), bilinear in Q8 weights. Per window row the two source
+    /// rows are first blended vertically, `v = p·(256 − fy) + q·fy` (≤
+    /// 255·256, exact in `u16`), over the contiguous run of source columns
+    /// the window reads (a loop the compiler vectorises); then each window
+    /// pixel is `(v_a·(256 − fx) + v_{a+1}·fx + 2^15) >> 16` (at most
+    /// 255·2^16, rounding to nearest). That is the same integer as the
+    /// four-tap form, which is kept for windows reading more than
+    /// [`SPAN`] source columns. Returns `false` (and leaves `out` alone)
+    /// for a plane under 2×2 pixels or a short `out`.
     pub fn sample(&mut self, luma: Plane<'_>, rect: &WindowRect, out: &mut [u8]) -> bool {
         if luma.width < 2 || luma.height < 2 || out.len() < self.len() {
             return false;
         }
         self.xs.fill(rect.left, rect.width, luma.width);
         self.ys.fill(rect.top, rect.height, luma.height);
+        // xs.a is non-decreasing and every a + 1 is inside the plane.
+        let first = self.xs.a[0] as usize;
+        let end = self.xs.a[self.w + 1] as usize + 2;
+        if end - first > SPAN {
+            self.sample_four_tap(luma, out);
+            return true;
+        }
+        let [wx0, wx1] = &mut self.wx;
+        for (((o, w0), w1), (&a, &f)) in self
+            .offs
+            .iter_mut()
+            .zip(wx0.iter_mut())
+            .zip(wx1.iter_mut())
+            .zip(self.xs.a.iter().zip(&self.xs.frac))
+        {
+            *o = (a as usize - first) as u16;
+            (*w0, *w1) = ((256 - f) as u16, f as u16);
+        }
         let stride = self.stride();
         for (j, row_out) in out.chunks_exact_mut(stride).take(self.h + 2).enumerate() {
             let ya = self.ys.a[j] as usize;
-            let ra = luma.row(ya);
-            let rb = luma.row(ya + 1);
+            let (Some(ra), Some(rb)) = (
+                luma.row(ya).get(first..end),
+                luma.row(ya + 1).get(first..end),
+            ) else {
+                continue;
+            };
+            let fy = self.ys.frac[j] as u16;
+            let gy = 256 - fy;
+            for ((v, &p), &q) in self.blend.iter_mut().zip(ra).zip(rb) {
+                *v = u16::from(p) * gy + u16::from(q) * fy;
+            }
+            // Gather the two taps of every pixel (scalar loads), then blend
+            // them in a loop the compiler vectorises.
+            let [t0, t1] = &mut self.taps;
+            for ((a, b), &k) in t0.iter_mut().zip(t1.iter_mut()).zip(&self.offs) {
+                let k = usize::from(k) & (SPAN - 1);
+                (*a, *b) = (self.blend[k], self.blend[k + 1]);
+            }
+            let [w0, w1] = &self.wx;
+            for (((o, &a), &b), (&w0, &w1)) in row_out
+                .iter_mut()
+                .zip(t0.iter())
+                .zip(t1.iter())
+                .zip(w0.iter().zip(w1))
+            {
+                let v = u32::from(a) * u32::from(w0) + u32::from(b) * u32::from(w1);
+                *o = ((v + (1 << 15)) >> 16) as u8;
+            }
+        }
+        true
+    }
+
+    /// The same samples, four taps per pixel (for very wide windows).
+    fn sample_four_tap(&self, luma: Plane<'_>, out: &mut [u8]) {
+        let stride = self.stride();
+        for (j, row_out) in out.chunks_exact_mut(stride).take(self.h + 2).enumerate() {
+            let ya = self.ys.a[j] as usize;
+            let (ra, rb) = (luma.row(ya), luma.row(ya + 1));
             let fy = self.ys.frac[j];
             for ((o, &xa), &fx) in row_out.iter_mut().zip(&self.xs.a).zip(&self.xs.frac) {
                 let xa = xa as usize;
                 let (Some(p), Some(q)) = (ra.get(xa..xa + 2), rb.get(xa..xa + 2)) else {
                     continue;
                 };
-                let top = u32::from(p[0]) * (256 - fx) + u32::from(p[1]) * fx;
-                let bot = u32::from(q[0]) * (256 - fx) + u32::from(q[1]) * fx;
-                *o = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+                let v0 = u32::from(p[0]) * (256 - fy) + u32::from(q[0]) * fy;
+                let v1 = u32::from(p[1]) * (256 - fy) + u32::from(q[1]) * fy;
+                *o = ((v0 * (256 - fx) + v1 * fx + (1 << 15)) >> 16) as u8;
             }
         }
-        true
     }
 }
 
@@ -219,6 +296,44 @@ mod tests {
         for j in 0..66 {
             for i in 0..34 {
                 assert_eq!(out[j * 34 + i], data[(19 + j) * w + 9 + i], "({i},{j})");
+            }
+        }
+    }
+
+    /// Both sampling paths (vertical-first, and four taps for windows
+    /// reading more than `SPAN` columns) give exactly the four-tap bilinear
+    /// value, on boxes shrunk, enlarged and reaching past the plane.
+    #[test]
+    fn samples_match_the_four_tap_definition() {
+        let l = Layout::full(32, 64, 43, 4, 8, 2).unwrap();
+        let (w, h) = (3000usize, 300usize);
+        let data: Vec<u8> = (0..w * h)
+            .map(|i| ((i % w) * 13 + (i / w) * 7 + (i * i) % 17) as u8)
+            .collect();
+        let plane = Plane::new(&data, w, h).unwrap();
+        let mut s = Sampler::new(&l);
+        let mut out = vec![0; s.len()];
+        let boxes = [
+            (100, 20, 150, 170),    // shrunk
+            (500, 100, 510, 119),   // enlarged
+            (2980, 280, 2999, 299), // past the corner
+            (10, 100, 2990, 140),   // wide: more than SPAN columns
+        ];
+        for (x0, y0, x1, y1) in boxes {
+            let b = BBox { x0, y0, x1, y1 };
+            let r = window_rect(&b, &l);
+            assert!(s.sample(plane, &r, &mut out));
+            let (xs, ys) = (&s.xs, &s.ys);
+            for j in 0..66 {
+                for i in 0..34 {
+                    let (xa, ya) = (xs.a[i] as usize, ys.a[j] as usize);
+                    let (fx, fy) = (xs.frac[i], ys.frac[j]);
+                    let p = |x: usize, y: usize| u32::from(data[y * w + x]);
+                    let top = p(xa, ya) * (256 - fx) + p(xa + 1, ya) * fx;
+                    let bot = p(xa, ya + 1) * (256 - fx) + p(xa + 1, ya + 1) * fx;
+                    let want = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+                    assert_eq!(out[j * 34 + i], want, "box {b:?} ({i},{j})");
+                }
             }
         }
     }
