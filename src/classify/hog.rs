@@ -152,6 +152,9 @@ pub fn magnitude(dx: i16, dy: i16) -> u16 {
 pub struct Hog {
     cells: Vec<u32>,
     cell_sq: Vec<u64>,
+    /// Coarse cells (2×2 cells summed) and their sums of squares.
+    coarse: Vec<u32>,
+    coarse_sq: Vec<u64>,
     /// Voting histograms: per cell, two banks of [`VOTE_BINS`] (even and
     /// odd columns).
     votes: Vec<u32>,
@@ -176,6 +179,8 @@ impl Hog {
         Hog {
             cells: vec![0; ncx * ncy * HOG_BINS],
             cell_sq: vec![0; ncx * ncy],
+            coarse: vec![0; (ncx / 2) * (ncy / 2) * HOG_BINS],
+            coarse_sq: vec![0; (ncx / 2) * (ncy / 2)],
             votes: vec![0; ncx * ncy * 2 * VOTE_BINS],
             ncx,
             ncy,
@@ -285,6 +290,47 @@ impl Hog {
             self.eps_sq,
             self.rsqrt,
             |i| selection.get(i).copied().unwrap_or(false),
+            out,
+        )
+    }
+
+    /// Writes every coarse block (see [`Layout::hog_coarse`]) to `out`:
+    /// the cells of the last [`Hog::cell_histograms`] summed 2×2 into
+    /// coarse cells (each entry at most 4 · 1024 · 350 · 256 < 2^29), then
+    /// blocks of 2×2 coarse cells normalised as the fine ones, with `ε`
+    /// four times as many pixels. Returns the bytes written.
+    pub fn coarse_blocks(&mut self, out: &mut [u8]) -> usize {
+        let (ncx, nx, ny) = (self.ncx, self.ncx / 2, self.ncy / 2);
+        for cy in 0..ny {
+            for cx in 0..nx {
+                let k = cy * nx + cx;
+                let fine = [
+                    2 * cy * ncx + 2 * cx,
+                    2 * cy * ncx + 2 * cx + 1,
+                    (2 * cy + 1) * ncx + 2 * cx,
+                    (2 * cy + 1) * ncx + 2 * cx + 1,
+                ];
+                let dst = &mut self.coarse[k * HOG_BINS..(k + 1) * HOG_BINS];
+                dst.fill(0);
+                for &f in &fine {
+                    for (d, &v) in dst
+                        .iter_mut()
+                        .zip(&self.cells[f * HOG_BINS..(f + 1) * HOG_BINS])
+                    {
+                        *d += v;
+                    }
+                }
+                self.coarse_sq[k] = dst.iter().map(|&v| u64::from(v) * u64::from(v)).sum();
+            }
+        }
+        normalise_blocks(
+            &self.coarse,
+            &self.coarse_sq,
+            nx,
+            ny,
+            self.eps_sq * 16,
+            self.rsqrt,
+            |_| true,
             out,
         )
     }
@@ -420,6 +466,21 @@ mod tests {
         }
         let mut out = Vec::new();
         float_blocks(&cells, ncx, ncy, (4 * c * c) as f64, &mut out);
+        if l.hog_coarse {
+            let (nx, ny) = (ncx / 2, ncy / 2);
+            let mut coarse = vec![0f64; nx * ny * HOG_BINS];
+            for cy in 0..ny {
+                for cx in 0..nx {
+                    for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        let f = (2 * cy + dy) * ncx + 2 * cx + dx;
+                        for k in 0..HOG_BINS {
+                            coarse[(cy * nx + cx) * HOG_BINS + k] += cells[f * HOG_BINS + k];
+                        }
+                    }
+                }
+            }
+            float_blocks(&coarse, nx, ny, (16 * c * c) as f64, &mut out);
+        }
         out
     }
 
@@ -468,8 +529,12 @@ mod tests {
             .collect();
         let mut hog = Hog::new(&l);
         hog.cell_histograms(&win, stride);
-        let mut out = vec![0u8; l.hog_dim()];
+        let mut out = vec![0u8; l.hog_dim() + l.coarse_dim()];
         assert_eq!(hog.blocks(&l.hog_blocks, &mut out), l.hog_dim());
+        assert!(l.coarse_dim() > 0);
+        let (fine, coarse) = out.split_at_mut(l.hog_dim());
+        assert_eq!(hog.coarse_blocks(coarse), l.coarse_dim());
+        assert!(coarse.iter().any(|&v| v > 200) && fine.iter().any(|&v| v > 200));
         let r = reference(&win, stride, &l);
         assert_eq!(r.len(), out.len());
         let mut worst = 0.0f64;

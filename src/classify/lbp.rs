@@ -94,7 +94,7 @@ impl Lbp {
             let Some(rows) = win.get(y * stride..y * stride + 2 * stride + w + 2) else {
                 break;
             };
-            let (up, mid, down) = (&rows[..], &rows[stride..], &rows[2 * stride..]);
+            let (up, mid, down) = (rows, &rows[stride..], &rows[2 * stride..]);
             // Nine slices of exactly `w` pixels: no bounds checks in the
             // loop, which the compiler vectorises (byte compares).
             let (tl, tp, tr) = (&up[..w], &up[1..w + 1], &up[2..w + 2]);

@@ -1,16 +1,18 @@
 //! Region box → fixed-size window on the Y plane (bilinear, fixed point).
 //!
 //! The window keeps the layout's aspect ratio. Its height is the box height
-//! plus a margin above and below ([`Layout::margin_q8`]); if the box (plus
-//! the same relative margin left and right) is wider than that, the window
-//! grows to fit the width instead, so a wide region (a group, a car) is
-//! shrunk whole rather than cropped. The box centre is the window centre.
+//! plus a margin above and below ([`Layout::margin_q8`]). With
+//! [`Fit::Contain`], if the box (plus the same relative margin left and
+//! right) is wider than that, the window grows to fit the width instead, so
+//! a wide region (a group, a car) is shrunk whole rather than cropped; with
+//! [`Fit::Height`] the sides are cropped instead. The box centre is the
+//! window centre.
 //!
 //! The window is sampled with a one-pixel border, `(win_w + 2)` ×
 //! `(win_h + 2)`, so that gradients and LBP codes exist at every window
 //! pixel. Samples outside the plane repeat its edge pixels.
 
-use super::layout::Layout;
+use super::layout::{Fit, Layout, ASPECT_CENTRES_Q8};
 use crate::detect::BBox;
 use crate::frame::Plane;
 
@@ -38,7 +40,7 @@ pub fn window_rect(bbox: &BBox, layout: &Layout) -> WindowRect {
     let mut height_q8 = bh * 256 + 2 * bh * m;
     let mut width_q8 = height_q8 * ww / wh;
     let need_w_q8 = bw * 256 + 2 * bw * m;
-    if need_w_q8 > width_q8 {
+    if layout.fit == Fit::Contain && need_w_q8 > width_q8 {
         width_q8 = need_w_q8;
         height_q8 = width_q8 * wh / ww;
     }
@@ -51,6 +53,34 @@ pub fn window_rect(bbox: &BBox, layout: &Layout) -> WindowRect {
         width: width_q8 << 8,
         height: height_q8 << 8,
     }
+}
+
+/// Writes the box-shape features of `bbox` to `out` (one per entry of
+/// [`ASPECT_CENTRES_Q8`]): the width/height ratio `r` in Q8 (integer
+/// division, exact) votes 255 split linearly between the two nearest bin
+/// centres, all of it to the end bin outside the centres' range.
+pub fn aspect_features(bbox: &BBox, out: &mut [u8]) {
+    out.fill(0);
+    let n = ASPECT_CENTRES_Q8.len().min(out.len());
+    if n == 0 {
+        return;
+    }
+    // width ≤ 65536, so width · 256 < 2^25.
+    let r = bbox.width() * 256 / bbox.height().max(1);
+    let c = &ASPECT_CENTRES_Q8[..n];
+    if r <= c[0] {
+        out[0] = 255;
+        return;
+    }
+    if r >= c[n - 1] {
+        out[n - 1] = 255;
+        return;
+    }
+    let k = c.iter().rposition(|&v| v <= r).unwrap_or(0);
+    // 255 · (r − c_k) < 255 · 2^9: no overflow.
+    let hi = (255 * (r - c[k]) + (c[k + 1] - c[k]) / 2) / (c[k + 1] - c[k]);
+    out[k + 1] = hi as u8;
+    out[k] = (255 - hi) as u8;
 }
 
 /// One axis of the sampling grid: for each window coordinate (border
@@ -244,9 +274,13 @@ impl Sampler {
 mod tests {
     use super::*;
 
+    fn contain() -> Layout {
+        Layout::full(32, 64, 43, 4, 8, 2).unwrap()
+    }
+
     #[test]
     fn tall_box_gets_vertical_margin_and_aspect() {
-        let l = Layout::default_layout();
+        let l = contain();
         let b = BBox {
             x0: 100,
             y0: 50,
@@ -264,17 +298,25 @@ mod tests {
     }
 
     #[test]
-    fn wide_box_widens_the_window() {
-        let l = Layout::default_layout();
+    fn wide_box_widens_the_window_or_is_cropped() {
         let b = BBox {
             x0: 0,
             y0: 0,
             x1: 199,
             y1: 49,
         };
-        let r = window_rect(&b, &l);
+        let r = window_rect(&b, &contain());
         assert!(r.width >= 200 << 16);
         assert_eq!(r.height, r.width * 2);
+        let mut l = contain();
+        l.fit = Fit::Height;
+        let r = window_rect(&b, &l);
+        let h = r.height as f64 / 65536.0;
+        assert!((h - 50.0 * (1.0 + 2.0 * 43.0 / 256.0)).abs() < 0.01, "{h}");
+        assert_eq!(r.height, r.width * 2);
+        // Still centred on the box.
+        let cx = (r.left as f64 + r.width as f64 / 2.0) / 65536.0;
+        assert!((cx - 99.5).abs() < 0.01, "{cx}");
     }
 
     #[test]
@@ -305,7 +347,7 @@ mod tests {
     /// value, on boxes shrunk, enlarged and reaching past the plane.
     #[test]
     fn samples_match_the_four_tap_definition() {
-        let l = Layout::full(32, 64, 43, 4, 8, 2).unwrap();
+        let l = contain();
         let (w, h) = (3000usize, 300usize);
         let data: Vec<u8> = (0..w * h)
             .map(|i| ((i % w) * 13 + (i / w) * 7 + (i * i) % 17) as u8)
@@ -336,5 +378,37 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn aspect_features_split_between_neighbouring_centres() {
+        let mut f = [0u8; 8];
+        let bx = |w: u16, h: u16| BBox {
+            x0: 0,
+            y0: 0,
+            x1: w - 1,
+            y1: h - 1,
+        };
+        // Narrower than the first centre, wider than the last: one bin.
+        aspect_features(&bx(10, 100), &mut f);
+        assert_eq!(f, [255, 0, 0, 0, 0, 0, 0, 0]);
+        aspect_features(&bx(300, 100), &mut f);
+        assert_eq!(f, [0, 0, 0, 0, 0, 0, 0, 255]);
+        // Exactly on a centre (0.40 = 102/256 of 256 px height).
+        aspect_features(&bx(102, 256), &mut f);
+        assert_eq!(f, [0, 0, 255, 0, 0, 0, 0, 0]);
+        // Halfway between 0.40 and 0.52 (r = 117.5 → 117 or 118): split.
+        aspect_features(&bx(118, 256), &mut f);
+        assert_eq!(f[2..4].iter().map(|&v| u32::from(v)).sum::<u32>(), 255);
+        assert!((120..=135).contains(&f[3]), "{f:?}");
+        // Monotone: a wider box moves weight to wider bins.
+        let mut centre = |w| {
+            aspect_features(&bx(w, 100), &mut f);
+            f.iter()
+                .enumerate()
+                .map(|(k, &v)| k as f64 * f64::from(v))
+                .sum::<f64>()
+        };
+        assert!((20..160).all(|w| centre(w) <= centre(w + 1)));
     }
 }
