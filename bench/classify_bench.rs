@@ -73,6 +73,8 @@ fn main() {
     let mut lbp = Lbp::new(&layout);
     let mut feats = vec![0u8; layout.dim()];
     let hd = layout.hog_dim();
+    let cd = hd + layout.coarse_dim();
+    let ld = cd + layout.lbp_dim();
     let stage = |name: &str, f: &mut dyn FnMut(usize)| {
         let t = Instant::now();
         for i in 0..n {
@@ -92,10 +94,13 @@ fn main() {
     });
     stage("HOG block norm", &mut |_| {
         black_box(hog.blocks(&layout.hog_blocks, &mut feats[..hd]));
+        if layout.hog_coarse {
+            black_box(hog.coarse_blocks(&mut feats[hd..cd]));
+        }
     });
     stage("LBP cells + norm", &mut |_| {
         lbp.histograms(black_box(&win), stride);
-        black_box(lbp.features(&layout.lbp_cells, &mut feats[hd..]));
+        black_box(lbp.features(&layout.lbp_cells, &mut feats[cd..ld]));
     });
     let model = cls.model().clone();
     stage("SVM dot product", &mut |_| {

@@ -152,34 +152,43 @@ struct TrainArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Window size WxH in pixels.
-    #[arg(long, default_value = "32x64")]
-    window: String,
-    /// Margin above and below the box, 1/256 of its height.
-    #[arg(long, default_value_t = 43)]
-    margin: u16,
-    /// HOG cell side, pixels.
-    #[arg(long, default_value_t = 4)]
-    hog_cell: u8,
-    /// LBP cell side, pixels.
-    #[arg(long, default_value_t = 8)]
-    lbp_cell: u8,
-    /// LBP comparison offset, grey levels.
-    #[arg(long, default_value_t = 2)]
-    lbp_threshold: u8,
+    /// Window size WxH in pixels (default 32x64).
+    #[arg(long)]
+    window: Option<String>,
+    /// Margin above and below the box, 1/256 of its height (default 32).
+    #[arg(long)]
+    margin: Option<u16>,
+    /// HOG cell side, pixels (default 4).
+    #[arg(long)]
+    hog_cell: Option<u8>,
+    /// LBP cell side, pixels (default 8).
+    #[arg(long)]
+    lbp_cell: Option<u8>,
+    /// LBP comparison offset, grey levels (default 2).
+    #[arg(long)]
+    lbp_threshold: Option<u8>,
+    /// How the box maps to the window: height (crop a wide box's sides; default) or contain (shrink it whole).
+    #[arg(long)]
+    fit: Option<String>,
+    /// Box-shape (width/height) features (default true).
+    #[arg(long)]
+    aspect: Option<bool>,
+    /// Coarse HOG blocks, cells merged 2x2 (default true).
+    #[arg(long)]
+    coarse: Option<bool>,
     /// Feature set: hog+lbp, hog or lbp.
     #[arg(long, default_value = "hog+lbp")]
     features: String,
     /// SVM C (default: chosen by cross-validation).
     #[arg(long)]
     c: Option<f64>,
-    /// Share of HOG blocks / LBP cells kept by weight magnitude (Park et al.).
-    #[arg(long, default_value_t = 1.0)]
-    select: f64,
-    /// Use every n-th PETS training frame for the base set.
-    #[arg(long, default_value_t = 2)]
-    pets_stride: u32,
-    /// Also evaluate on the held-out PETS frames (600-794).
+    /// Share of HOG blocks / LBP cells kept by weight magnitude (Park et al.; default 0.5).
+    #[arg(long)]
+    select: Option<f64>,
+    /// Use every n-th PETS training frame for the base set (default 1).
+    #[arg(long)]
+    pets_stride: Option<u32>,
+    /// Also evaluate on the held-out PETS frames (600-794) and sim seeds.
     #[arg(long)]
     eval: bool,
     /// Only evaluate this weight blob on the held-out data (no training).
@@ -188,6 +197,30 @@ struct TrainArgs {
     /// Leave the simulated scenes out of training.
     #[arg(long)]
     no_sim: bool,
+    /// Simulated training seeds, N,N,... or A..B (default 1..6).
+    #[arg(long)]
+    sim_seeds: Option<String>,
+    /// Simulated seeds that contribute only their cars and dogs, N,N,... or A..B (default none).
+    #[arg(long)]
+    animal_seeds: Option<String>,
+    /// Also train on the mirror image of every PETS and simulated person (default true).
+    #[arg(long)]
+    mirror: Option<bool>,
+    /// Jittered boxes of each clean person per training frame (default 1).
+    #[arg(long)]
+    persons: Option<usize>,
+    /// Rounds of hard-negative mining (default 1).
+    #[arg(long)]
+    mining_rounds: Option<usize>,
+    /// Search every n-th simulated training frame for hard negatives (0: PETS only; default 0).
+    #[arg(long)]
+    mine_sim_stride: Option<u64>,
+    /// Cost multiplier of a kind, KIND=X (person, background, group, fragment, car, dog); repeatable.
+    #[arg(long = "weight")]
+    weights: Vec<String>,
+    /// Skip the cross-validation of the final set.
+    #[arg(long)]
+    no_final_cv: bool,
 }
 
 #[derive(Args)]
@@ -629,8 +662,8 @@ fn sim_cmd(a: SimArgs) -> i32 {
 }
 
 fn train_cmd(a: TrainArgs) -> i32 {
-    use stature::classify::{layout::Layout, train};
-    let Some(data_dir) = a.data.or_else(stature::dataset::shared_data_dir) else {
+    use stature::classify::{eval, train};
+    let Some(data_dir) = a.data.clone().or_else(stature::dataset::shared_data_dir) else {
         eprintln!("error: no data folder (give --data DIR)");
         return exit::BAD_INPUT;
     };
@@ -646,8 +679,8 @@ fn train_cmd(a: TrainArgs) -> i32 {
                 return exit::BAD_INPUT;
             }
         };
-        let ev = train::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
-            ev.rows.extend(train::evaluate_sim(&model, a.seed)?.rows);
+        let ev = eval::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
+            ev.rows.extend(eval::evaluate_sim(&model, a.seed)?.rows);
             Ok(ev)
         });
         return match ev {
@@ -661,39 +694,12 @@ fn train_cmd(a: TrainArgs) -> i32 {
             }
         };
     }
-    let Some((w, h)) = a
-        .window
-        .split_once('x')
-        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
-    else {
-        eprintln!("error: --window {}: expected WxH, e.g. 32x64", a.window);
-        return exit::BAD_INPUT;
-    };
-    let mut layout = match Layout::full(w, h, a.margin, a.hog_cell, a.lbp_cell, a.lbp_threshold) {
-        Ok(l) => l,
+    let opts = match train_options(&a, data_dir) {
+        Ok(o) => o,
         Err(e) => {
             eprintln!("error: {e}");
             return exit::BAD_INPUT;
         }
-    };
-    match a.features.as_str() {
-        "hog+lbp" => {}
-        "hog" => layout.lbp_cells.fill(false),
-        "lbp" => layout.hog_blocks.fill(false),
-        f => {
-            eprintln!("error: --features {f}: expected hog+lbp, hog or lbp");
-            return exit::BAD_INPUT;
-        }
-    }
-    let opts = train::TrainOptions {
-        data_dir,
-        layout,
-        seed: a.seed,
-        c: a.c,
-        select: a.select.clamp(0.01, 1.0),
-        pets_stride: a.pets_stride.max(1),
-        eval: a.eval,
-        sim: !a.no_sim,
     };
     let (model, report) = match train::train(&opts) {
         Ok(r) => r,
@@ -715,4 +721,86 @@ fn train_cmd(a: TrainArgs) -> i32 {
     }
     eprintln!("wrote {}", a.out.display());
     exit::OK
+}
+
+/// The training recipe ([`train::TrainOptions::new`] on the default layout)
+/// with the options given on the command line applied.
+fn train_options(
+    a: &TrainArgs,
+    data_dir: PathBuf,
+) -> Result<stature::classify::train::TrainOptions, String> {
+    use stature::classify::layout::{Fit, Layout, ASPECT_CENTRES_Q8};
+    use stature::classify::train;
+    let d = Layout::default_layout();
+    let (w, h) = match &a.window {
+        None => (d.win_w, d.win_h),
+        Some(win) => win
+            .split_once('x')
+            .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+            .ok_or_else(|| format!("--window {win}: expected WxH, e.g. 32x64"))?,
+    };
+    let mut layout = Layout::full(
+        w,
+        h,
+        a.margin.unwrap_or(d.margin_q8),
+        a.hog_cell.unwrap_or(d.hog_cell),
+        a.lbp_cell.unwrap_or(d.lbp_cell),
+        a.lbp_threshold.unwrap_or(d.lbp_threshold),
+    )
+    .map_err(|e| e.to_string())?;
+    layout.fit = match a.fit.as_deref() {
+        None => d.fit,
+        Some("height") => Fit::Height,
+        Some("contain") => Fit::Contain,
+        Some(f) => return Err(format!("--fit {f}: expected height or contain")),
+    };
+    layout.aspect_bins = match a.aspect {
+        None => d.aspect_bins,
+        Some(true) => ASPECT_CENTRES_Q8.len() as u8,
+        Some(false) => 0,
+    };
+    layout.hog_coarse = a.coarse.unwrap_or(d.hog_coarse);
+    match a.features.as_str() {
+        "hog+lbp" => {}
+        "hog" => layout.lbp_cells.fill(false),
+        "lbp" => layout.hog_blocks.fill(false),
+        f => return Err(format!("--features {f}: expected hog+lbp, hog or lbp")),
+    }
+    layout.validate().map_err(|e| e.to_string())?;
+    let mut o = train::TrainOptions::new(data_dir, layout);
+    o.seed = a.seed;
+    o.c = a.c;
+    o.eval = a.eval;
+    o.skip_final_cv = a.no_final_cv;
+    if let Some(s) = a.select {
+        o.select = s.clamp(0.01, 1.0);
+    }
+    if let Some(s) = a.pets_stride {
+        o.pets_stride = s.max(1);
+    }
+    if let Some(s) = &a.sim_seeds {
+        o.sim_seeds = train::parse_seeds(s).map_err(|e| format!("--sim-seeds {e}"))?;
+    }
+    if a.no_sim {
+        o.sim_seeds.clear();
+    }
+    if let Some(s) = &a.animal_seeds {
+        o.animal_seeds = train::parse_seeds(s).map_err(|e| format!("--animal-seeds {e}"))?;
+    }
+    if let Some(m) = a.mirror {
+        o.mirror = m;
+    }
+    if let Some(p) = a.persons {
+        o.persons_per_frame = p.clamp(1, 8);
+    }
+    if let Some(r) = a.mining_rounds {
+        o.mining_rounds = r;
+    }
+    if let Some(s) = a.mine_sim_stride {
+        o.mine_sim_stride = s;
+    }
+    for w in &a.weights {
+        o.kind_weights.set(w).map_err(|e| format!("--weight {e}"))?;
+    }
+    Ok(o)
 }

@@ -10,8 +10,9 @@
 //!   scaled by a power of two, rounding, until they fit in −32..=32 and
 //!   0..=32 (the larger one keeps at least 16 levels, so the angle error
 //!   stays under 2.6°, a eighth of a bin), then a 33×65 table gives the
-//!   two nearest bins and the Q8 weight of the upper one. The vote is split
-//!   linearly between the two bins.
+//!   lower of the two nearest bins and the Q8 weight of the upper one. The
+//!   vote is split linearly between the two bins (bin 8's upper neighbour
+//!   is bin 0: orientations wrap).
 //! * Cell histogram entries are Q8 magnitude sums: at most
 //!   `cell² · 350 · 256` (< 2^27 for 32-px cells), in `u32`.
 //! * Block normalisation, "L2-clip": a 2×2-cell block is divided by
@@ -32,11 +33,17 @@ const CLIP_SCALE: u64 = 1275;
 
 /// Columns of the orientation table (reduced `dx` in −32..=32).
 const TABLE_COLS: usize = 65;
-/// Entries of the orientation table (reduced `dy` in 0..=32).
-const TABLE_LEN: usize = 33 * TABLE_COLS;
+/// Entries of the orientation table: 33 rows (reduced `dy` in 0..=32) of
+/// [`TABLE_COLS`], padded to a power of two so that an index masked with
+/// `TABLE_LEN − 1` needs no bounds check.
+const TABLE_LEN: usize = 4096;
+/// Entries per cell in the voting histograms: the 9 bins plus a tenth that
+/// takes bin 8's upper votes and is folded into bin 0 afterwards, so the
+/// upper bin is always the lower one plus one.
+const VOTE_BINS: usize = HOG_BINS + 1;
 
-/// Table entry: `lo << 12 | hi << 8 | frac_q8` for every reduced gradient,
-/// at `dy · 65 + dx + 32`.
+/// Table entry: `lo << 8 | frac_q8` (lower bin, Q8 weight of the upper
+/// one) for every reduced gradient, at `dy · 65 + dx + 32`.
 fn orientation_table() -> &'static [u16; TABLE_LEN] {
     static TABLE: OnceLock<[u16; TABLE_LEN]> = OnceLock::new();
     TABLE.get_or_init(|| {
@@ -53,9 +60,7 @@ fn orientation_table() -> &'static [u16; TABLE_LEN] {
                     frac = 0;
                 }
                 let lo = (lo as i32).rem_euclid(HOG_BINS as i32);
-                let hi = (lo + 1) % HOG_BINS as i32;
-                t[dy as usize * TABLE_COLS + (dx + 32) as usize] =
-                    ((lo << 12) | (hi << 8) | frac) as u16;
+                t[dy as usize * TABLE_COLS + (dx + 32) as usize] = ((lo << 8) | frac) as u16;
             }
         }
         t
@@ -101,11 +106,8 @@ fn clip_recip(x: u64, t: &[u16; RSQRT_LEN]) -> u32 {
 /// the upper bin)`, exactly as the feature code bins it.
 pub fn orientation_bins(dx: i32, dy: i32) -> (usize, usize, u32) {
     let e = orientation_table()[usize::from(table_index(dx as i16, dy as i16))];
-    (
-        usize::from(e >> 12),
-        usize::from((e >> 8) & 15),
-        u32::from(e & 255),
-    )
+    let lo = usize::from(e >> 8);
+    (lo, (lo + 1) % HOG_BINS, u32::from(e & 255))
 }
 
 /// Table index of a gradient with components in −255..=255.
@@ -116,8 +118,9 @@ pub fn orientation_bins(dx: i32, dy: i32) -> (usize, usize, u32) {
 /// a constant shift. Every intermediate fits `i16` (bounds inline).
 #[inline(always)]
 fn table_index(dx: i16, dy: i16) -> u16 {
-    // Fold into dy > 0 or (dy == 0, dx >= 0): unsigned orientation.
-    let flip = dy < 0 || (dy == 0 && dx < 0);
+    // Fold into dy > 0 or (dy == 0, dx >= 0): unsigned orientation. (`|`
+    // and `&`, not `||` and `&&`: no branch, so the caller's loop vectorises.)
+    let flip = (dy < 0) | ((dy == 0) & (dx < 0));
     let sdx = if flip { -dx } else { dx };
     let ady = dy.abs();
     let adx = sdx.abs();
@@ -149,6 +152,12 @@ pub fn magnitude(dx: i16, dy: i16) -> u16 {
 pub struct Hog {
     cells: Vec<u32>,
     cell_sq: Vec<u64>,
+    /// Coarse cells (2×2 cells summed) and their sums of squares.
+    coarse: Vec<u32>,
+    coarse_sq: Vec<u64>,
+    /// Voting histograms: per cell, two banks of [`VOTE_BINS`] (even and
+    /// odd columns).
+    votes: Vec<u32>,
     ncx: usize,
     ncy: usize,
     cell: usize,
@@ -157,8 +166,6 @@ pub struct Hog {
     eps_sq: u64,
     table: &'static [u16; TABLE_LEN],
     rsqrt: &'static [u16; RSQRT_LEN],
-    bank: Vec<u32>,
-    col_base: Vec<u16>,
     mag: Vec<u16>,
     idx: Vec<u16>,
 }
@@ -172,6 +179,9 @@ impl Hog {
         Hog {
             cells: vec![0; ncx * ncy * HOG_BINS],
             cell_sq: vec![0; ncx * ncy],
+            coarse: vec![0; (ncx / 2) * (ncy / 2) * HOG_BINS],
+            coarse_sq: vec![0; (ncx / 2) * (ncy / 2)],
+            votes: vec![0; ncx * ncy * 2 * VOTE_BINS],
             ncx,
             ncy,
             cell,
@@ -180,105 +190,196 @@ impl Hog {
             eps_sq: eps * eps,
             table: orientation_table(),
             rsqrt: rsqrt_table(),
-            bank: vec![0; ncx * ncy * HOG_BINS],
-            col_base: (0..usize::from(layout.win_w))
-                .map(|x| ((x / cell) * HOG_BINS) as u16)
-                .collect(),
             mag: vec![0; usize::from(layout.win_w)],
             idx: vec![0; usize::from(layout.win_w)],
         }
     }
 
-    /// Cell histograms of the last [`Hog::compute`], `ncx·ncy·9`, row-major.
+    /// Cell histograms of the last [`Hog::cell_histograms`], `ncx·ncy·9`,
+    /// row-major.
     pub fn cells(&self) -> &[u32] {
         &self.cells
     }
 
     /// Fills the cell histograms from a bordered window (`stride = w + 2`).
     ///
-    /// Per row, a branch-free pass (vectorised by the compiler) computes
-    /// each pixel's magnitude and table index; a scalar pass then votes.
-    /// Even and odd columns vote into two banks that are summed at the end,
-    /// so consecutive votes into the same bin do not wait on each other.
+    /// Per row, a branch-free pass over slices of exactly `w` pixels (no
+    /// bounds checks, so the compiler vectorises it in 16-bit lanes)
+    /// computes each pixel's magnitude and table index; a scalar pass then
+    /// votes, cell by cell. Even and odd columns vote into two banks that
+    /// are summed at the end, so consecutive votes into the same bin do not
+    /// wait on each other.
     pub fn cell_histograms(&mut self, win: &[u8], stride: usize) {
-        self.cells.fill(0);
-        self.bank.fill(0);
+        // `votes` is all zero here: it starts so and the fold below clears
+        // what it reads.
         let (w, cell) = (self.w, self.cell);
-        let n = self.ncx * HOG_BINS;
+        let row_votes = self.ncx * 2 * VOTE_BINS;
         for y in 0..self.h {
-            let up = &win[y * stride..y * stride + w + 2];
-            let mid = &win[(y + 1) * stride..(y + 1) * stride + w + 2];
-            let down = &win[(y + 2) * stride..(y + 2) * stride + w + 2];
+            let Some(rows) = win.get(y * stride..y * stride + 2 * stride + w + 2) else {
+                break;
+            };
+            let (up, mid, down) = (&rows[1..w + 1], &rows[stride..], &rows[2 * stride + 1..]);
+            let (left, right, down) = (&mid[..w], &mid[2..w + 2], &down[..w]);
             let mags = &mut self.mag[..w];
             let idxs = &mut self.idx[..w];
             for x in 0..w {
-                let dx = i16::from(mid[x + 2]) - i16::from(mid[x]);
-                let dy = i16::from(down[x + 1]) - i16::from(up[x + 1]);
+                let dx = i16::from(right[x]) - i16::from(left[x]);
+                let dy = i16::from(down[x]) - i16::from(up[x]);
                 mags[x] = magnitude(dx, dy);
                 idxs[x] = table_index(dx, dy);
             }
-            let row = (y / cell) * n;
-            let (even, odd) = (&mut self.cells[row..row + n], &mut self.bank[row..row + n]);
-            // w is a multiple of the cell side, so even: take columns in pairs.
-            for ((m, i), base) in mags
-                .chunks_exact(2)
-                .zip(idxs.chunks_exact(2))
-                .zip(self.col_base.chunks_exact(2))
+            let votes = &mut self.votes[(y / cell) * row_votes..(y / cell + 1) * row_votes];
+            for ((hist, m), i) in votes
+                .chunks_exact_mut(2 * VOTE_BINS)
+                .zip(mags.chunks_exact(cell))
+                .zip(idxs.chunks_exact(cell))
             {
-                for (k, hist) in [(0, &mut *even), (1, &mut *odd)] {
-                    let mag = u32::from(m[k]);
-                    let e = u32::from(self.table[usize::from(i[k])]);
-                    let frac = e & 255;
-                    let b = usize::from(base[k]);
-                    hist[b + (e >> 12) as usize] += mag * (256 - frac);
-                    hist[b + ((e >> 8) & 15) as usize] += mag * frac;
+                let Ok(hist) = <&mut [u32; 2 * VOTE_BINS]>::try_from(hist) else {
+                    continue;
+                };
+                // Pairs of columns vote into the two banks; the last
+                // column of an odd-sized cell votes into the first.
+                let mut pairs_m = m.chunks_exact(2);
+                let mut pairs_i = i.chunks_exact(2);
+                for (m, i) in (&mut pairs_m).zip(&mut pairs_i) {
+                    for k in 0..2 {
+                        let e = u32::from(self.table[usize::from(i[k]) & (TABLE_LEN - 1)]);
+                        // lo ≤ 8 by construction; the min lets the compiler
+                        // drop the bounds checks.
+                        let lo = ((e >> 8) as usize).min(HOG_BINS - 1) + k * VOTE_BINS;
+                        let mag = u32::from(m[k]);
+                        let hi_vote = mag * (e & 255);
+                        hist[lo] += (mag << 8) - hi_vote;
+                        hist[lo + 1] += hi_vote;
+                    }
+                }
+                for (&m, &i) in pairs_m.remainder().iter().zip(pairs_i.remainder()) {
+                    let e = u32::from(self.table[usize::from(i) & (TABLE_LEN - 1)]);
+                    let lo = ((e >> 8) as usize).min(HOG_BINS - 1);
+                    let mag = u32::from(m);
+                    let hi_vote = mag * (e & 255);
+                    hist[lo] += (mag << 8) - hi_vote;
+                    hist[lo + 1] += hi_vote;
                 }
             }
         }
-        for (c, b) in self.cells.iter_mut().zip(&self.bank) {
-            *c += b;
-        }
-        for (sq, h) in self
-            .cell_sq
-            .iter_mut()
-            .zip(self.cells.chunks_exact(HOG_BINS))
+        for ((c, v), sq) in self
+            .cells
+            .chunks_exact_mut(HOG_BINS)
+            .zip(self.votes.chunks_exact_mut(2 * VOTE_BINS))
+            .zip(self.cell_sq.iter_mut())
         {
-            *sq = h.iter().map(|&v| u64::from(v) * u64::from(v)).sum();
+            for (k, o) in c.iter_mut().enumerate() {
+                *o = v[k] + v[VOTE_BINS + k];
+            }
+            // The tenth entry of each bank is bin 8's upper votes: bin 0.
+            c[0] += v[HOG_BINS] + v[VOTE_BINS + HOG_BINS];
+            v.fill(0);
+            *sq = c.iter().map(|&v| u64::from(v) * u64::from(v)).sum();
         }
     }
 
     /// Writes the normalised selected blocks (see the module doc) to `out`
     /// (`selected · 36` bytes); returns the bytes written.
     pub fn blocks(&self, selection: &[bool], out: &mut [u8]) -> usize {
-        let (bx_n, by_n) = (self.ncx - 1, self.ncy - 1);
-        let mut k = 0;
-        for by in 0..by_n {
-            for bx in 0..bx_n {
-                if !selection.get(by * bx_n + bx).copied().unwrap_or(false) {
-                    continue;
-                }
-                let Some(dst) = out.get_mut(k..k + BLOCK_DIM) else {
-                    return k;
-                };
-                let c = [
-                    by * self.ncx + bx,
-                    by * self.ncx + bx + 1,
-                    (by + 1) * self.ncx + bx,
-                    (by + 1) * self.ncx + bx + 1,
+        normalise_blocks(
+            &self.cells,
+            &self.cell_sq,
+            self.ncx,
+            self.ncy,
+            self.eps_sq,
+            self.rsqrt,
+            |i| selection.get(i).copied().unwrap_or(false),
+            out,
+        )
+    }
+
+    /// Writes every coarse block (see [`Layout::hog_coarse`]) to `out`:
+    /// the cells of the last [`Hog::cell_histograms`] summed 2×2 into
+    /// coarse cells (each entry at most 4 · 1024 · 350 · 256 < 2^29), then
+    /// blocks of 2×2 coarse cells normalised as the fine ones, with `ε`
+    /// four times as many pixels. Returns the bytes written.
+    pub fn coarse_blocks(&mut self, out: &mut [u8]) -> usize {
+        let (ncx, nx, ny) = (self.ncx, self.ncx / 2, self.ncy / 2);
+        for cy in 0..ny {
+            for cx in 0..nx {
+                let k = cy * nx + cx;
+                let fine = [
+                    2 * cy * ncx + 2 * cx,
+                    2 * cy * ncx + 2 * cx + 1,
+                    (2 * cy + 1) * ncx + 2 * cx,
+                    (2 * cy + 1) * ncx + 2 * cx + 1,
                 ];
-                let sumsq: u64 = c.iter().map(|&i| self.cell_sq[i]).sum();
-                let recip = clip_recip(sumsq + self.eps_sq, self.rsqrt);
-                for (d, &ci) in dst.chunks_exact_mut(HOG_BINS).zip(c.iter()) {
-                    let src = &self.cells[ci * HOG_BINS..(ci + 1) * HOG_BINS];
-                    for (o, &v) in d.iter_mut().zip(src) {
-                        *o = ((v * recip) >> 16).min(255) as u8;
+                let dst = &mut self.coarse[k * HOG_BINS..(k + 1) * HOG_BINS];
+                dst.fill(0);
+                for &f in &fine {
+                    for (d, &v) in dst
+                        .iter_mut()
+                        .zip(&self.cells[f * HOG_BINS..(f + 1) * HOG_BINS])
+                    {
+                        *d += v;
                     }
                 }
-                k += BLOCK_DIM;
+                self.coarse_sq[k] = dst.iter().map(|&v| u64::from(v) * u64::from(v)).sum();
             }
         }
-        k
+        normalise_blocks(
+            &self.coarse,
+            &self.coarse_sq,
+            nx,
+            ny,
+            self.eps_sq * 16,
+            self.rsqrt,
+            |_| true,
+            out,
+        )
     }
+}
+
+/// L2-clip normalisation of the 2×2-cell blocks of an `ncx`×`ncy` grid of
+/// cells (`cells`: 9 entries each; `sq`: their sums of squares) for which
+/// `selected(block)` holds, in block order, into `out`; returns the bytes
+/// written. `v · recip` fits `u32`: `v ≤ sqrt(Σv²)`, so the product is at
+/// most `CLIP_SCALE · 2^16 · 1.004 < 2^27`.
+#[allow(clippy::too_many_arguments)]
+fn normalise_blocks(
+    cells: &[u32],
+    sq: &[u64],
+    ncx: usize,
+    ncy: usize,
+    eps_sq: u64,
+    rsqrt: &[u16; RSQRT_LEN],
+    selected: impl Fn(usize) -> bool,
+    out: &mut [u8],
+) -> usize {
+    let (bx_n, by_n) = (ncx.saturating_sub(1), ncy.saturating_sub(1));
+    let mut k = 0;
+    for by in 0..by_n {
+        for bx in 0..bx_n {
+            if !selected(by * bx_n + bx) {
+                continue;
+            }
+            let Some(dst) = out.get_mut(k..k + BLOCK_DIM) else {
+                return k;
+            };
+            let c = [
+                by * ncx + bx,
+                by * ncx + bx + 1,
+                (by + 1) * ncx + bx,
+                (by + 1) * ncx + bx + 1,
+            ];
+            let sumsq: u64 = c.iter().map(|&i| sq[i]).sum();
+            let recip = clip_recip(sumsq + eps_sq, rsqrt);
+            for (d, &ci) in dst.chunks_exact_mut(HOG_BINS).zip(c.iter()) {
+                let src = &cells[ci * HOG_BINS..(ci + 1) * HOG_BINS];
+                for (o, &v) in d.iter_mut().zip(src) {
+                    *o = ((v * recip) >> 16).min(255) as u8;
+                }
+            }
+            k += BLOCK_DIM;
+        }
+    }
+    k
 }
 
 #[cfg(test)]
@@ -364,7 +465,28 @@ mod tests {
             }
         }
         let mut out = Vec::new();
-        let eps = (4 * c * c) as f64;
+        float_blocks(&cells, ncx, ncy, (4 * c * c) as f64, &mut out);
+        if l.hog_coarse {
+            let (nx, ny) = (ncx / 2, ncy / 2);
+            let mut coarse = vec![0f64; nx * ny * HOG_BINS];
+            for cy in 0..ny {
+                for cx in 0..nx {
+                    for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        let f = (2 * cy + dy) * ncx + 2 * cx + dx;
+                        for k in 0..HOG_BINS {
+                            coarse[(cy * nx + cx) * HOG_BINS + k] += cells[f * HOG_BINS + k];
+                        }
+                    }
+                }
+            }
+            float_blocks(&coarse, nx, ny, (16 * c * c) as f64, &mut out);
+        }
+        out
+    }
+
+    /// Float L2-clip normalisation of every 2×2 block, `eps` as in the
+    /// module doc.
+    fn float_blocks(cells: &[f64], ncx: usize, ncy: usize, eps: f64, out: &mut Vec<f64>) {
         for by in 0..ncy - 1 {
             for bx in 0..ncx - 1 {
                 let ids = [
@@ -386,7 +508,6 @@ mod tests {
                 }
             }
         }
-        out
     }
 
     #[test]
@@ -408,9 +529,14 @@ mod tests {
             .collect();
         let mut hog = Hog::new(&l);
         hog.cell_histograms(&win, stride);
-        let mut out = vec![0u8; l.hog_dim()];
+        let mut out = vec![0u8; l.hog_dim() + l.coarse_dim()];
         assert_eq!(hog.blocks(&l.hog_blocks, &mut out), l.hog_dim());
+        assert!(l.coarse_dim() > 0);
+        let (fine, coarse) = out.split_at_mut(l.hog_dim());
+        assert_eq!(hog.coarse_blocks(coarse), l.coarse_dim());
+        assert!(coarse.iter().any(|&v| v > 200) && fine.iter().any(|&v| v > 200));
         let r = reference(&win, stride, &l);
+        assert_eq!(r.len(), out.len());
         let mut worst = 0.0f64;
         let mut sum = 0.0;
         for (a, b) in out.iter().zip(&r) {

@@ -1,10 +1,11 @@
 //! The feature layout: window size, cell sizes, block selection, and the
 //! order in which features appear in the vector the SVM sees.
 //!
-//! # Feature vector (feature code version 2)
+//! # Feature vector (feature code version 3)
 //!
 //! A region's box is resampled to a `win_w`×`win_h` window (see
-//! [`super::window`]). The vector is, in this order:
+//! [`super::window`]; [`Layout::fit`] says how a box wider than the window
+//! is handled). The vector is, in this order:
 //!
 //! 1. **HOG**: the window is cut into square cells of `hog_cell` pixels
 //!    (`win_w / hog_cell` columns, `win_h / hog_cell` rows). Blocks are 2×2
@@ -13,10 +14,19 @@
 //!    bottom-right, each [`HOG_BINS`] unsigned orientation bins (bin `k`
 //!    centred on `20°·k + 10°`, angle measured from +x toward +y, i.e. image
 //!    down), block-normalised (see [`super::hog`]).
-//! 2. **LBP**: the window is cut into square cells of `lbp_cell` pixels,
+//! 2. **Coarse HOG** (when [`Layout::hog_coarse`]): the same cells
+//!    summed 2×2 into cells twice the side, and every 2×2 block of those,
+//!    normalised alike: a coarser view of the silhouette that tolerates
+//!    pose and alignment the fine blocks do not.
+//! 3. **LBP**: the window is cut into square cells of `lbp_cell` pixels,
 //!    row-major. For every *selected* cell: [`LBP_BINS`] bins, the 58
 //!    uniform 8-neighbour patterns in ascending code order, then one bin for
 //!    all non-uniform patterns (see [`super::lbp`]).
+//! 4. **Box shape** (when [`Layout::aspect_bins`] is not 0): the region
+//!    box's width/height ratio, soft-binned over [`ASPECT_CENTRES_Q8`] (see
+//!    [`super::window::aspect_features`]): the window hides how wide the
+//!    box was, and a linear SVM can then learn that a box twice as wide as
+//!    tall is no single person.
 //!
 //! Every feature is a `u8`, 255 meaning 1.0 of its normalised scale.
 //! [`Layout::hash`] fingerprints all of this (plus [`FEATURE_VERSION`]) so a
@@ -32,7 +42,42 @@ pub const BLOCK_DIM: usize = 4 * HOG_BINS;
 pub const LBP_BINS: usize = 59;
 /// Bumped whenever feature arithmetic changes in a way the layout
 /// parameters do not show (it feeds [`Layout::hash`]).
-pub const FEATURE_VERSION: u32 = 2;
+pub const FEATURE_VERSION: u32 = 3;
+/// Centres of the box-shape bins, width/height in Q8 (0.22, 0.30, 0.40,
+/// 0.52, 0.68, 0.90, 1.20, 1.60): people are 0.2–0.6, side-by-side groups
+/// and fragments 0.5–1.6, cars 1.8 and more.
+pub const ASPECT_CENTRES_Q8: [u32; 8] = [56, 77, 102, 133, 174, 230, 307, 410];
+
+/// How a region box becomes the window.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fit {
+    /// The whole box (plus margin) fits inside the window: a box wider
+    /// than the window's aspect widens the window, so a wide region is
+    /// shrunk whole.
+    Contain,
+    /// The window height always follows the box height (plus margin); a
+    /// wider box is cropped at the sides, so a person striding sideways
+    /// keeps the scale of one walking toward the camera.
+    Height,
+}
+
+impl Fit {
+    /// Code in the blob header.
+    pub fn code(self) -> u8 {
+        match self {
+            Fit::Contain => 0,
+            Fit::Height => 1,
+        }
+    }
+    /// From a blob header code.
+    pub fn from_code(c: u8) -> Option<Fit> {
+        match c {
+            0 => Some(Fit::Contain),
+            1 => Some(Fit::Height),
+            _ => None,
+        }
+    }
+}
 /// Largest window side accepted, in pixels (bounds every scratch buffer and
 /// the Q formats in [`super::hog`]).
 pub const MAX_WINDOW_SIDE: u16 = 256;
@@ -65,6 +110,15 @@ pub struct Layout {
     /// this many grey levels brighter than the centre... or equal when 0
     /// (a small offset keeps codec noise on flat areas out of the codes).
     pub lbp_threshold: u8,
+    /// How the box maps to the window.
+    pub fit: Fit,
+    /// Box-shape features: 0 (none) or `ASPECT_CENTRES_Q8.len()`.
+    pub aspect_bins: u8,
+    /// Coarse HOG: the cells summed 2×2 into cells of `2·hog_cell` px,
+    /// and every 2×2 block of those (needs an even number of cells a side,
+    /// at least 4).
+    pub hog_coarse: bool,
+
     /// One flag per HOG block (row-major): computed and fed to the SVM.
     pub hog_blocks: Vec<bool>,
     /// One flag per LBP cell (row-major).
@@ -88,6 +142,9 @@ impl Layout {
             hog_cell,
             lbp_cell,
             lbp_threshold,
+            fit: Fit::Contain,
+            aspect_bins: 0,
+            hog_coarse: false,
             hog_blocks: Vec::new(),
             lbp_cells: Vec::new(),
         };
@@ -97,11 +154,17 @@ impl Layout {
         Ok(l)
     }
 
-    /// The layout the shipped weights use: 32×64 window, 4-px HOG cells,
-    /// 8-px LBP cells (chosen from the measurements in `bench/RESULTS.md`).
+    /// The layout the shipped weights use: 32×64 window fitted to the box
+    /// height with a margin of 32/256, 4-px HOG cells plus coarse blocks,
+    /// 8-px LBP cells, box-shape features (chosen from the measurements in
+    /// `bench/RESULTS.md`).
     pub fn default_layout() -> Self {
         // The parameters are constants inside the supported ranges.
-        Layout::full(32, 64, 43, 4, 8, 2).unwrap_or_else(|_| unreachable!())
+        let mut l = Layout::full(32, 64, 32, 4, 8, 2).unwrap_or_else(|_| unreachable!());
+        l.fit = Fit::Height;
+        l.aspect_bins = ASPECT_CENTRES_Q8.len() as u8;
+        l.hog_coarse = true;
+        l
     }
 
     fn check_geometry(&self) -> Result<(), LayoutError> {
@@ -126,6 +189,19 @@ impl Layout {
         if self.win_w / u16::from(self.hog_cell) < 2 || self.win_h / u16::from(self.hog_cell) < 2 {
             return Err(LayoutError("fewer than 2x2 HOG cells".into()));
         }
+        if self.aspect_bins != 0 && usize::from(self.aspect_bins) != ASPECT_CENTRES_Q8.len() {
+            return Err(LayoutError(format!(
+                "{} box-shape bins (this build: 0 or {})",
+                self.aspect_bins,
+                ASPECT_CENTRES_Q8.len()
+            )));
+        }
+        let (cx, cy) = self.hog_cells();
+        if self.hog_coarse && (cx % 2 != 0 || cy % 2 != 0 || cx < 4 || cy < 4) {
+            return Err(LayoutError(format!(
+                "coarse HOG needs an even number of cells a side, at least 4 ({cx}x{cy})"
+            )));
+        }
         if self.margin_q8 > 256 {
             return Err(LayoutError(format!(
                 "margin {}/256 of the box height exceeds 1",
@@ -145,7 +221,7 @@ impl Layout {
                 "block selection does not match the grid".into(),
             ));
         }
-        if self.dim() == 0 {
+        if self.hog_dim() + self.coarse_dim() + self.lbp_dim() == 0 {
             return Err(LayoutError("no block or cell selected".into()));
         }
         Ok(())
@@ -184,13 +260,33 @@ impl Layout {
     pub fn selected_lbp_cells(&self) -> usize {
         self.lbp_cells.iter().filter(|&&b| b).count()
     }
-    /// Length of the HOG part of the vector.
+    /// Length of the (fine) HOG part of the vector.
     pub fn hog_dim(&self) -> usize {
         self.selected_blocks() * BLOCK_DIM
     }
+    /// Coarse HOG blocks (see [`Layout::hog_coarse`]).
+    pub fn coarse_blocks(&self) -> usize {
+        if !self.hog_coarse {
+            return 0;
+        }
+        let (cx, cy) = self.hog_cells();
+        (cx / 2 - 1) * (cy / 2 - 1)
+    }
+    /// Length of the coarse HOG part of the vector.
+    pub fn coarse_dim(&self) -> usize {
+        self.coarse_blocks() * BLOCK_DIM
+    }
+    /// Length of the LBP part of the vector.
+    pub fn lbp_dim(&self) -> usize {
+        self.selected_lbp_cells() * LBP_BINS
+    }
+    /// Flags byte of the header: bit 0 coarse HOG (the other bits are 0).
+    pub fn flags(&self) -> u8 {
+        u8::from(self.hog_coarse)
+    }
     /// Feature vector length.
     pub fn dim(&self) -> usize {
-        self.hog_dim() + self.selected_lbp_cells() * LBP_BINS
+        self.hog_dim() + self.coarse_dim() + self.lbp_dim() + usize::from(self.aspect_bins)
     }
 
     /// Canonical bytes that define the layout (what [`Layout::hash`] hashes
@@ -204,9 +300,9 @@ impl Layout {
         b
     }
 
-    /// Window size, margin, cell sizes, bin counts and LBP threshold, little
-    /// endian (11 bytes): part of the canonical bytes and of the weight
-    /// blob's header.
+    /// Window size, margin, cell sizes, bin counts, LBP threshold, fit,
+    /// box-shape bins and the coarse flags, little endian (14 bytes):
+    /// part of the canonical bytes and of the weight blob's header.
     pub fn extend_window_fields(&self, b: &mut Vec<u8>) {
         b.extend_from_slice(&self.win_w.to_le_bytes());
         b.extend_from_slice(&self.win_h.to_le_bytes());
@@ -217,7 +313,32 @@ impl Layout {
             self.lbp_cell,
             LBP_BINS as u8,
             self.lbp_threshold,
+            self.fit.code(),
+            self.aspect_bins,
+            self.flags(),
         ]);
+    }
+
+    /// One line for reports: sizes, selection, dimension and hash.
+    pub fn describe(&self) -> String {
+        format!(
+            "window {}x{} ({:?} fit), margin {}/256, HOG cell {} ({} of {} blocks, {} coarse), LBP cell {} ({} of {} cells, threshold {}), {} box-shape bins, dim {}, layout hash {:016x}",
+            self.win_w,
+            self.win_h,
+            self.fit,
+            self.margin_q8,
+            self.hog_cell,
+            self.selected_blocks(),
+            self.hog_block_count(),
+            self.coarse_blocks(),
+            self.lbp_cell,
+            self.selected_lbp_cells(),
+            self.lbp_cell_count(),
+            self.lbp_threshold,
+            self.aspect_bins,
+            self.dim(),
+            self.hash()
+        )
     }
 
     /// FNV-1a (64-bit) of [`Layout::canonical_bytes`].
@@ -265,8 +386,26 @@ mod tests {
         assert_eq!(l.hog_cells(), (8, 16));
         assert_eq!(l.hog_block_count(), 7 * 15);
         assert_eq!(l.lbp_cell_count(), 4 * 8);
-        assert_eq!(l.dim(), 105 * 36 + 32 * 59);
+        assert_eq!(l.coarse_blocks(), 3 * 7);
+        assert_eq!(l.dim(), 105 * 36 + 21 * 36 + 32 * 59 + 8);
         l.validate().unwrap();
+    }
+
+    #[test]
+    fn unsupported_options_are_refused() {
+        let mut l = Layout::default_layout();
+        l.aspect_bins = 5;
+        assert!(l.validate().is_err());
+        // 24x48 with 4-px cells: 6x12 cells, coarse needs an even count...
+        let mut l = Layout::full(24, 48, 32, 4, 8, 2).unwrap();
+        l.hog_coarse = true;
+        assert!(l.validate().is_ok());
+        // ...which 20x40 (5x10 cells) does not have.
+        let mut l = Layout::full(20, 40, 32, 4, 4, 2).unwrap();
+        l.hog_coarse = true;
+        assert!(l.validate().is_err());
+        assert!(Fit::from_code(2).is_none());
+        assert_eq!(Fit::from_code(Fit::Height.code()), Some(Fit::Height));
     }
 
     #[test]
@@ -283,6 +422,15 @@ mod tests {
         let mut b = a.clone();
         b.hog_blocks[3] = false;
         assert_ne!(a.hash(), b.hash());
+        for change in [
+            |l: &mut Layout| l.fit = Fit::Contain,
+            |l: &mut Layout| l.aspect_bins = 0,
+            |l: &mut Layout| l.hog_coarse = false,
+        ] {
+            let mut c = a.clone();
+            change(&mut c);
+            assert_ne!(a.hash(), c.hash());
+        }
         assert_eq!(
             unpack_bits(&pack_bits(&b.hog_blocks), b.hog_blocks.len()),
             b.hog_blocks

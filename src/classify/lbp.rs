@@ -11,7 +11,8 @@
 //! table, `255 · sqrt(count / cell²)` rounded, with no division at run time.
 //!
 //! Codes are built a row at a time with branch-free compares (the compiler
-//! vectorises them); only the histogram increments are scalar.
+//! vectorises them); only the histogram increments are scalar. Counts fit
+//! `u16`: a cell has at most 32² = 1024 pixels.
 
 use super::layout::{Layout, LBP_BINS};
 
@@ -32,14 +33,20 @@ pub fn uniform_table() -> [u8; 256] {
     t
 }
 
+/// Counter slots per cell and bank: the 59 bins padded to 64, so a bin
+/// masked with 63 indexes a fixed-size array without a bounds check.
+const SLOTS: usize = 64;
+
 /// LBP scratch and tables.
 #[derive(Clone, Debug)]
 pub struct Lbp {
     table: [u8; 256],
-    sqrt_q: Vec<u8>,
+    /// `255 · sqrt(count / cell²)` for every count a cell can hold (at most
+    /// 32² = 1024; larger entries are 255).
+    sqrt_q: Box<[u8; 1025]>,
     counts: Vec<u16>,
-    bank: Vec<u16>,
-    col_base: Vec<u16>,
+    /// Per cell, two banks of [`SLOTS`] counters (even and odd columns).
+    banks: Vec<u16>,
     codes: Vec<u8>,
     ncx: usize,
     cell: usize,
@@ -54,17 +61,15 @@ impl Lbp {
         let (ncx, ncy) = layout.lbp_grid();
         let cell = usize::from(layout.lbp_cell);
         let n = cell * cell;
-        let sqrt_q = (0..=n)
-            .map(|c| (255.0 * (c as f64 / n as f64).sqrt()).round() as u8)
-            .collect();
+        let mut sqrt_q = Box::new([255u8; 1025]);
+        for (c, q) in sqrt_q.iter_mut().enumerate().take(n + 1) {
+            *q = (255.0 * (c as f64 / n as f64).sqrt()).round() as u8;
+        }
         Lbp {
             table: uniform_table(),
             sqrt_q,
             counts: vec![0; ncx * ncy * LBP_BINS],
-            bank: vec![0; ncx * ncy * LBP_BINS],
-            col_base: (0..usize::from(layout.win_w))
-                .map(|x| ((x / cell) * LBP_BINS) as u16)
-                .collect(),
+            banks: vec![0; ncx * ncy * 2 * SLOTS],
             codes: vec![0; usize::from(layout.win_w)],
             ncx,
             cell,
@@ -81,43 +86,61 @@ impl Lbp {
 
     /// Counts the codes of a bordered window (`stride = w + 2`) per cell.
     pub fn histograms(&mut self, win: &[u8], stride: usize) {
-        self.counts.fill(0);
-        self.bank.fill(0);
-        let (w, t) = (self.w, self.threshold);
+        // `banks` is all zero here: it starts so and the fold below clears
+        // what it reads.
+        let (w, t, cell) = (self.w, self.threshold, self.cell);
+        let row_slots = self.ncx * 2 * SLOTS;
         for y in 0..self.h {
-            let up = &win[y * stride..y * stride + w + 2];
-            let mid = &win[(y + 1) * stride..(y + 1) * stride + w + 2];
-            let down = &win[(y + 2) * stride..(y + 2) * stride + w + 2];
+            let Some(rows) = win.get(y * stride..y * stride + 2 * stride + w + 2) else {
+                break;
+            };
+            let (up, mid, down) = (rows, &rows[stride..], &rows[2 * stride..]);
+            // Nine slices of exactly `w` pixels: no bounds checks in the
+            // loop, which the compiler vectorises (byte compares).
+            let (tl, tp, tr) = (&up[..w], &up[1..w + 1], &up[2..w + 2]);
+            let (l, c, r) = (&mid[..w], &mid[1..w + 1], &mid[2..w + 2]);
+            let (bl, bt, br) = (&down[..w], &down[1..w + 1], &down[2..w + 2]);
             let codes = &mut self.codes[..w];
-            let centre = &mid[1..w + 1];
-            let neighbours: [&[u8]; 8] = [
-                &up[0..w],
-                &up[1..w + 1],
-                &up[2..w + 2],
-                &mid[2..w + 2],
-                &down[2..w + 2],
-                &down[1..w + 1],
-                &down[0..w],
-                &mid[0..w],
-            ];
-            codes.fill(0);
-            for (k, n) in neighbours.iter().enumerate() {
-                for ((c, &p), &m) in codes.iter_mut().zip(n.iter()).zip(centre) {
-                    *c |= u8::from(p >= m.saturating_add(t)) << k;
-                }
+            for x in 0..w {
+                let m = c[x].saturating_add(t);
+                codes[x] = u8::from(tl[x] >= m)
+                    | u8::from(tp[x] >= m) << 1
+                    | u8::from(tr[x] >= m) << 2
+                    | u8::from(r[x] >= m) << 3
+                    | u8::from(br[x] >= m) << 4
+                    | u8::from(bt[x] >= m) << 5
+                    | u8::from(bl[x] >= m) << 6
+                    | u8::from(l[x] >= m) << 7;
             }
             // Even and odd columns count into two banks (summed below) so
             // runs of equal codes do not serialise on one counter.
-            let row = (y / self.cell) * self.ncx * LBP_BINS;
-            for (c, base) in codes.chunks_exact(2).zip(self.col_base.chunks_exact(2)) {
-                self.counts
-                    [row + usize::from(base[0]) + usize::from(self.table[usize::from(c[0])])] += 1;
-                self.bank
-                    [row + usize::from(base[1]) + usize::from(self.table[usize::from(c[1])])] += 1;
+            let banks = &mut self.banks[(y / cell) * row_slots..(y / cell + 1) * row_slots];
+            for (bank, cc) in banks
+                .chunks_exact_mut(2 * SLOTS)
+                .zip(codes.chunks_exact(cell))
+            {
+                let Ok(bank) = <&mut [u16; 2 * SLOTS]>::try_from(bank) else {
+                    continue;
+                };
+                let mut pairs = cc.chunks_exact(2);
+                for p in &mut pairs {
+                    bank[usize::from(self.table[usize::from(p[0])]) & (SLOTS - 1)] += 1;
+                    bank[SLOTS + (usize::from(self.table[usize::from(p[1])]) & (SLOTS - 1))] += 1;
+                }
+                for &code in pairs.remainder() {
+                    bank[usize::from(self.table[usize::from(code)]) & (SLOTS - 1)] += 1;
+                }
             }
         }
-        for (c, b) in self.counts.iter_mut().zip(&self.bank) {
-            *c += b;
+        for (c, b) in self
+            .counts
+            .chunks_exact_mut(LBP_BINS)
+            .zip(self.banks.chunks_exact_mut(2 * SLOTS))
+        {
+            for (k, o) in c.iter_mut().enumerate() {
+                *o = b[k] + b[SLOTS + k];
+            }
+            b.fill(0);
         }
     }
 
@@ -133,7 +156,7 @@ impl Lbp {
                 return k;
             };
             for (o, &c) in dst.iter_mut().zip(cell) {
-                *o = self.sqrt_q.get(usize::from(c)).copied().unwrap_or(255);
+                *o = self.sqrt_q[usize::from(c).min(1024)];
             }
             k += LBP_BINS;
         }

@@ -15,10 +15,12 @@ use crate::frame::Plane;
 use core::fmt;
 use serde::{Deserialize, Serialize};
 
+pub mod eval;
 pub mod hog;
 pub mod layout;
 pub mod lbp;
 pub mod samples;
+pub mod solver;
 pub mod svm;
 pub mod train;
 pub mod window;
@@ -181,28 +183,41 @@ impl Extractor {
     /// Computes the feature vector of `bbox` on `luma`; `None` for an
     /// empty plane.
     pub fn extract(&mut self, luma: Plane<'_>, bbox: &BBox) -> Option<&[u8]> {
+        self.extract_flipped(luma, bbox, false)
+    }
+
+    /// [`Extractor::extract`], of the mirror image when `flip` is set (left
+    /// and right swapped; the window is sampled as usual and flipped before
+    /// the features are computed: training augmentation).
+    pub fn extract_flipped(&mut self, luma: Plane<'_>, bbox: &BBox, flip: bool) -> Option<&[u8]> {
         let rect = window::window_rect(bbox, &self.layout);
         if !self.sampler.sample(luma, &rect, &mut self.win) {
             return None;
         }
-        Some(self.compute())
-    }
-
-    /// Computes the features of the window already in place.
-    fn compute(&mut self) -> &[u8] {
+        if flip {
+            for row in self.win.chunks_exact_mut(self.sampler.stride()) {
+                row.reverse();
+            }
+        }
         let stride = self.sampler.stride();
         let hd = self.layout.hog_dim();
-        if hd > 0 {
+        let cd = hd + self.layout.coarse_dim();
+        let ld = cd + self.layout.lbp_dim();
+        if cd > 0 {
             self.hog.cell_histograms(&self.win, stride);
             self.hog
                 .blocks(&self.layout.hog_blocks, &mut self.features[..hd]);
+            if cd > hd {
+                self.hog.coarse_blocks(&mut self.features[hd..cd]);
+            }
         }
-        if hd < self.features.len() {
+        if ld > hd {
             self.lbp.histograms(&self.win, stride);
             self.lbp
-                .features(&self.layout.lbp_cells, &mut self.features[hd..]);
+                .features(&self.layout.lbp_cells, &mut self.features[cd..ld]);
         }
-        &self.features
+        window::aspect_features(bbox, &mut self.features[ld..]);
+        Some(&self.features)
     }
 }
 
@@ -308,6 +323,36 @@ mod tests {
         let e = cfg.validate().unwrap_err();
         assert_eq!(e.key, "classify.weights");
         assert!(e.to_string().contains("/nonexistent/w.bin"), "{e}");
+    }
+
+    #[test]
+    fn flipped_extraction_mirrors_the_window() {
+        let layout = Layout::default_layout();
+        let mut ex = Extractor::new(&layout);
+        let (w, h) = (120usize, 160usize);
+        let img: Vec<u8> = (0..w * h)
+            .map(|i| ((i % w) * 2 + (i / w) % 7) as u8)
+            .collect();
+        let p = Plane::new(&img, w, h).unwrap();
+        let b = BBox {
+            x0: 40,
+            y0: 20,
+            x1: 70,
+            y1: 130,
+        };
+        let plain = ex.extract(p, &b).unwrap().to_vec();
+        let win = ex.window().to_vec();
+        let flipped = ex.extract_flipped(p, &b, true).unwrap().to_vec();
+        let stride = usize::from(layout.win_w) + 2;
+        for (a, f) in win
+            .chunks_exact(stride)
+            .zip(ex.window().chunks_exact(stride))
+        {
+            assert!(a.iter().rev().eq(f.iter()));
+        }
+        // A left-to-right ramp: mirrored, its gradients point the other way.
+        assert_ne!(plain, flipped);
+        assert_eq!(plain[plain.len() - 8..], flipped[flipped.len() - 8..]);
     }
 
     #[test]

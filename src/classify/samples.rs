@@ -489,7 +489,65 @@ pub mod sim {
     use super::*;
     use crate::frame::Frame;
     use crate::source::sim::people::Kind as SimKind;
-    use crate::source::sim::SimSource;
+    use crate::source::sim::{ObjectTruth, SimSource};
+
+    fn truth_box(o: &ObjectTruth) -> FBox {
+        o.bbox.map(f64::from)
+    }
+
+    /// A car or dog at least half visible as a jittered negative of its
+    /// kind; `None` for people and mostly hidden objects.
+    fn animal_sample(o: &ObjectTruth, rng: &mut Rng, w: usize, h: usize) -> Option<Labelled> {
+        let kind = match o.kind {
+            SimKind::Person => return None,
+            SimKind::Car => Kind::Car,
+            SimKind::Dog => Kind::Dog,
+        };
+        if o.visible_fraction < 0.5 {
+            return None;
+        }
+        let bbox = to_bbox(&jitter(&truth_box(o), rng), w, h)?;
+        Some(Labelled { kind, bbox })
+    }
+
+    /// Calls `each(frame_index, luma, samples)` for every `stride`-th frame
+    /// of scene `name` with `seed` in which a car or a dog is in view, with
+    /// only the cars and dogs (at least half visible) as samples: more
+    /// animals and vehicles for training, without rendering the frames
+    /// that have none (the cast's frame ranges come from the geometry).
+    pub fn for_animal_frames(
+        name: &str,
+        seed: u64,
+        stride: u64,
+        rng: &mut Rng,
+        mut each: impl FnMut(u64, Plane<'_>, &[Labelled]),
+    ) -> Result<(), String> {
+        let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
+        let spans: Vec<(u64, u64)> = src
+            .cast()
+            .iter()
+            .filter(|m| m.kind != SimKind::Person && m.frames_in_view > 0)
+            .map(|m| (m.first_frame, m.last_frame))
+            .collect();
+        let size = crate::source::FrameSource::info(&src).size;
+        let mut frame = Frame::new(size);
+        let mut out = Vec::new();
+        let mut k = 0;
+        while k < src.frames() {
+            if !spans.iter().any(|&(a, b)| (a..=b).contains(&k)) {
+                k += 1;
+                continue;
+            }
+            src.render(k, &mut frame);
+            out.clear();
+            for o in src.truth() {
+                out.extend(animal_sample(o, rng, size.width, size.height));
+            }
+            each(k, frame.luma(), &out);
+            k += stride;
+        }
+        Ok(())
+    }
 
     /// Calls `each(frame_index, luma, samples)` for every `stride`-th frame
     /// of scene `name` with `seed`.
@@ -513,30 +571,12 @@ pub mod sim {
             let mut others = Vec::new();
             out.clear();
             for o in src.truth() {
-                let b = [
-                    f64::from(o.bbox[0]),
-                    f64::from(o.bbox[1]),
-                    f64::from(o.bbox[2]),
-                    f64::from(o.bbox[3]),
-                ];
-                match o.kind {
-                    SimKind::Person => {
-                        people.push(b);
-                        hidden.push(o.visible_fraction < 0.85);
-                    }
-                    SimKind::Car | SimKind::Dog => {
-                        others.push(b);
-                        if o.visible_fraction >= 0.5 {
-                            let kind = if o.kind == SimKind::Car {
-                                Kind::Car
-                            } else {
-                                Kind::Dog
-                            };
-                            if let Some(bbox) = to_bbox(&jitter(&b, rng), size.width, size.height) {
-                                out.push(Labelled { kind, bbox });
-                            }
-                        }
-                    }
+                if o.kind == SimKind::Person {
+                    people.push(truth_box(o));
+                    hidden.push(o.visible_fraction < 0.85);
+                } else {
+                    others.push(truth_box(o));
+                    out.extend(animal_sample(o, rng, size.width, size.height));
                 }
             }
             frame_samples(
@@ -553,5 +593,27 @@ pub mod sim {
             k += stride;
         }
         Ok(())
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn animal_frames_give_only_cars_and_dogs() {
+            let (mut frames, mut dogs) = (0, 0);
+            for_animal_frames("plaza", 1, 5, &mut Rng::new(1), |_, luma, boxes| {
+                frames += 1;
+                assert_eq!((luma.width, luma.height), (640, 480));
+                for b in boxes {
+                    assert!(matches!(b.kind, Kind::Dog | Kind::Car), "{b:?}");
+                    dogs += usize::from(b.kind == Kind::Dog);
+                }
+            })
+            .unwrap();
+            // The plaza has a dog; only frames with it in view are rendered.
+            assert!(frames > 5 && frames < 150, "{frames}");
+            assert!(dogs > 5, "{dogs}");
+        }
     }
 }

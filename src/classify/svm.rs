@@ -4,12 +4,12 @@
 //! `x_i` the `u8` features. The sum is exact in `i32`: at most
 //! `dim · 255 · 128`, and [`MAX_DIM`] keeps that below 2^31.
 //!
-//! # Blob format, version 1 (all integers little-endian)
+//! # Blob format, version 2 (all integers little-endian)
 //!
 //! | offset | bytes | field |
 //! | ---: | ---: | --- |
 //! | 0 | 8 | magic `STATSVM\0` |
-//! | 8 | 2 | format version (1) |
+//! | 8 | 2 | format version (2) |
 //! | 10 | 2 | reserved, 0 |
 //! | 12 | 4 | total blob length in bytes, checksum included |
 //! | 16 | 2 | window width, px |
@@ -20,27 +20,34 @@
 //! | 24 | 1 | LBP cell, px |
 //! | 25 | 1 | LBP bins (59) |
 //! | 26 | 1 | LBP threshold, grey levels |
-//! | 27 | 1 | weight type: 1 = i8 |
-//! | 28 | 4 | feature code version ([`FEATURE_VERSION`]) |
-//! | 32 | 8 | feature layout hash ([`Layout::hash`]) |
-//! | 40 | 4 | dimension |
-//! | 44 | 4 | scale, f32 |
-//! | 48 | 4 | bias, f32 |
-//! | 52 | 2 | HOG blocks in the grid |
-//! | 54 | 2 | LBP cells in the grid |
-//! | 56 | ⌈blocks/8⌉ + ⌈cells/8⌉ | selection bitmaps (bit i%8 of byte i/8) |
+//! | 27 | 1 | fit: 0 = contain, 1 = height ([`Fit`]) |
+//! | 28 | 1 | box-shape bins (0 or 8) |
+//! | 29 | 1 | flags: bit 0 coarse HOG ([`Layout::hog_coarse`]), others 0 |
+//! | 30 | 1 | weight type: 1 = i8 |
+//! | 31 | 1 | reserved, 0 |
+//! | 32 | 4 | feature code version ([`FEATURE_VERSION`]) |
+//! | 36 | 8 | feature layout hash ([`Layout::hash`]) |
+//! | 44 | 4 | dimension |
+//! | 48 | 4 | scale, f32 |
+//! | 52 | 4 | bias, f32 |
+//! | 56 | 2 | HOG blocks in the grid |
+//! | 58 | 2 | LBP cells in the grid |
+//! | 60 | ⌈blocks/8⌉ + ⌈cells/8⌉ | selection bitmaps (bit i%8 of byte i/8) |
 //! | … | dimension | weights, i8 |
 //! | end − 4 | 4 | CRC-32 (IEEE) of every byte before it |
+//!
+//! Version 1 (no fit and box-shape fields, feature code version 2) is
+//! refused: its weights belong to features this build no longer computes.
 
-use super::layout::{pack_bits, unpack_bits, Layout, FEATURE_VERSION, HOG_BINS, LBP_BINS};
+use super::layout::{pack_bits, unpack_bits, Fit, Layout, FEATURE_VERSION, HOG_BINS, LBP_BINS};
 use core::fmt;
 
 /// First bytes of every weight blob.
 pub const MAGIC: [u8; 8] = *b"STATSVM\0";
 /// The blob format this build reads and writes.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 /// Fixed header length before the selection bitmaps.
-pub const HEADER_LEN: usize = 56;
+pub const HEADER_LEN: usize = 60;
 /// Largest dimension accepted: keeps `dim · 255 · 128 < 2^31`.
 pub const MAX_DIM: usize = 65_000;
 /// Weight type code for signed 8-bit weights.
@@ -112,7 +119,7 @@ impl fmt::Display for WeightsError {
             WeightsError::BadMagic => write!(f, "not a stature weight blob (bad magic)"),
             WeightsError::UnsupportedVersion(v) => write!(
                 f,
-                "format version {v} is not supported (this build reads version {FORMAT_VERSION})"
+                "format version {v} is not supported (this build reads version {FORMAT_VERSION}; retrain with `stature train`)"
             ),
             WeightsError::TrailingBytes { declared, got } => {
                 write!(f, "{got} bytes where the header declares {declared}")
@@ -214,6 +221,7 @@ impl Model {
         b.extend_from_slice(&0u32.to_le_bytes()); // length, patched below
         l.extend_window_fields(&mut b);
         b.push(WEIGHT_I8);
+        b.push(0);
         b.extend_from_slice(&FEATURE_VERSION.to_le_bytes());
         b.extend_from_slice(&l.hash().to_le_bytes());
         b.extend_from_slice(&(self.weights.len() as u32).to_le_bytes());
@@ -273,10 +281,10 @@ impl Model {
                 b[23], b[25]
             )));
         }
-        if b[27] != WEIGHT_I8 {
-            return Err(WeightsError::WeightType(b[27]));
+        if b[30] != WEIGHT_I8 {
+            return Err(WeightsError::WeightType(b[30]));
         }
-        let fv = le32(b, 28);
+        let fv = le32(b, 32);
         if fv != FEATURE_VERSION {
             return Err(WeightsError::FeatureVersion {
                 blob: fv,
@@ -285,7 +293,17 @@ impl Model {
         }
         let mut layout = Layout::full(le16(b, 16), le16(b, 18), le16(b, 20), b[22], b[24], b[26])
             .map_err(|e| WeightsError::Layout(e.0))?;
-        let (nb, nc) = (le16(b, 52) as usize, le16(b, 54) as usize);
+        layout.fit = Fit::from_code(b[27])
+            .ok_or_else(|| WeightsError::Layout(format!("unknown fit code {}", b[27])))?;
+        layout.aspect_bins = b[28];
+        if b[29] & !1 != 0 {
+            return Err(WeightsError::Layout(format!(
+                "unknown layout flags {:#04x}",
+                b[29]
+            )));
+        }
+        layout.hog_coarse = b[29] & 1 != 0;
+        let (nb, nc) = (le16(b, 56) as usize, le16(b, 58) as usize);
         if nb != layout.hog_block_count() || nc != layout.lbp_cell_count() {
             return Err(WeightsError::Layout(format!(
                 "{nb} HOG blocks and {nc} LBP cells, the window implies {} and {}",
@@ -294,7 +312,7 @@ impl Model {
             )));
         }
         let (sb, sc) = (nb.div_ceil(8), nc.div_ceil(8));
-        let dim = le32(b, 40) as usize;
+        let dim = le32(b, 44) as usize;
         let weights_at = HEADER_LEN + sb + sc;
         if body.len() < weights_at {
             return Err(WeightsError::Truncated {
@@ -305,7 +323,7 @@ impl Model {
         layout.hog_blocks = unpack_bits(&b[HEADER_LEN..HEADER_LEN + sb], nb);
         layout.lbp_cells = unpack_bits(&b[HEADER_LEN + sb..weights_at], nc);
         let computed = layout.hash();
-        let stored = u64::from_le_bytes(b[32..40].try_into().unwrap_or([0; 8]));
+        let stored = u64::from_le_bytes(b[36..44].try_into().unwrap_or([0; 8]));
         if stored != computed {
             return Err(WeightsError::LayoutHash { stored, computed });
         }
@@ -322,8 +340,8 @@ impl Model {
                 layout: dim,
             });
         }
-        let scale = f32::from_le_bytes(b[44..48].try_into().unwrap_or([0; 4]));
-        let bias = f32::from_le_bytes(b[48..52].try_into().unwrap_or([0; 4]));
+        let scale = f32::from_le_bytes(b[48..52].try_into().unwrap_or([0; 4]));
+        let bias = f32::from_le_bytes(b[52..56].try_into().unwrap_or([0; 4]));
         if !(scale.is_finite() && scale > 0.0) {
             return Err(WeightsError::BadNumber("scale"));
         }

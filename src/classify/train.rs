@@ -1,26 +1,35 @@
 //! The trainer behind `stature train` (host side, never in the loop).
 //!
-//! 1. Samples: MIT CBCL crops (positives, their mirror images, and a
-//!    fragment negative each) and PETS 2009 S2.L1 frames 0–599 (every
-//!    `pets_stride`-th frame: jittered clean people, background, groups,
-//!    fragments; see [`super::samples`]). Frames 600–794 are held out.
+//! 1. Samples ([`super::samples`]): MIT CBCL crops (positives, their mirror
+//!    images, and a fragment negative each); PETS 2009 S2.L1 frames 0–599
+//!    (every `pets_stride`-th frame: jittered clean people, background,
+//!    groups, fragments); the simulated scenes with seeds `sim_seeds`
+//!    (every 10th frame, the same kinds plus cars and dogs); optionally
+//!    the cars and dogs of further seeds (`animal_seeds`). People are
+//!    mirrored too (`mirror`). PETS frames 600–794 and sim seed 101 are
+//!    held out and never used here.
 //! 2. Features: the production [`Extractor`], so training sees exactly the
 //!    `u8` vectors the camera computes.
-//! 3. Solver: L2-regularised L2-loss linear SVM in the dual, by coordinate
-//!    descent (Hsieh et al. 2008, the LIBLINEAR `-s 1` method), bias as a
-//!    constant feature, fixed-seed permutation each epoch.
+//! 3. Solver ([`super::solver`]): L2-regularised L2-loss linear SVM in the
+//!    dual, coordinate descent with shrinking, a cost per kind.
 //! 4. `C` picked from a small grid by 5-fold cross-validation grouped by
-//!    source block (PETS folds are contiguous frame ranges, so neighbouring
-//!    frames never sit on both sides of a split).
-//! 5. One round of hard-negative mining on every training frame, retrain.
-//! 6. Optional block selection (Park et al. 2012): keep the HOG blocks and
-//!    LBP cells with the largest mean |w|, retrain on those columns.
-//! 7. Quantise to i8, write the blob, report.
+//!    source block (PETS folds are contiguous frame ranges, sim folds are
+//!    scenes, so neighbouring frames never sit on both sides of a split).
+//! 5. Hard-negative mining (`mining_rounds`, default one): many candidate
+//!    negatives on every PETS training frame (and simulated frames when
+//!    `mine_sim_stride` is set); those scored above −1 are added; retrain.
+//! 6. Block selection (Park et al. 2012; `select`, default 0.5): keep the
+//!    share of HOG blocks and of LBP cells with the largest mean |w|,
+//!    retrain on those columns (coarse blocks and box shape are kept).
+//! 7. Quantise to i8, write the blob, report (with the held-out evaluation
+//!    of [`super::eval`] when asked).
 
+use super::eval::{evaluate_pets, evaluate_sim, Evaluation};
 use super::layout::{Layout, BLOCK_DIM, LBP_BINS};
 use super::samples::{self, Kind, Labelled, Origin, PerFrame, Rng};
+use super::solver::{accuracy, cross_validate, solve, Data, KindWeights, Linear};
 use super::svm::Model;
-use super::{Classifier, ClassifyConfig, Extractor};
+use super::Extractor;
 use crate::dataset;
 use crate::frame::{Frame, Plane};
 use crate::source::{FrameSource, Next};
@@ -48,184 +57,70 @@ pub struct TrainOptions {
     pub pets_stride: u32,
     /// Also evaluate on the held-out frames and append it to the report.
     pub eval: bool,
-    /// Add simulated scenes (seeds [`SIM_TRAIN_SEEDS`]) to training.
-    pub sim: bool,
+    /// Simulated training clips (seeds of every scene in [`SIM_SCENES`]);
+    /// empty for none. Never any of [`SIM_EVAL_SEEDS`].
+    pub sim_seeds: Vec<u64>,
+    /// Simulated clips that give only their cars and dogs (negatives the
+    /// main clips have few of); never any of [`SIM_EVAL_SEEDS`].
+    pub animal_seeds: Vec<u64>,
+    /// Add the mirror image of every PETS and simulated person.
+    pub mirror: bool,
+    /// Jittered boxes of each clean person per training frame.
+    pub persons_per_frame: usize,
+    /// Rounds of hard-negative mining (each retrains).
+    pub mining_rounds: usize,
+    /// Every n-th simulated training frame is searched for hard negatives
+    /// (0: mine PETS only).
+    pub mine_sim_stride: u64,
+    /// Cost multiplier per kind.
+    pub kind_weights: KindWeights,
+    /// Skip the cross-validation of the final set (faster experiments).
+    pub skip_final_cv: bool,
+}
+
+impl TrainOptions {
+    /// The recipe of the committed weights for `layout`.
+    pub fn new(data_dir: PathBuf, layout: Layout) -> Self {
+        TrainOptions {
+            data_dir,
+            layout,
+            seed: 1,
+            c: None,
+            select: 0.5,
+            pets_stride: 1,
+            eval: false,
+            sim_seeds: SIM_TRAIN_SEEDS.to_vec(),
+            animal_seeds: Vec::new(),
+            mirror: true,
+            persons_per_frame: 1,
+            mining_rounds: 1,
+            mine_sim_stride: 0,
+            kind_weights: KindWeights::default(),
+            skip_final_cv: false,
+        }
+    }
+}
+
+/// Seeds from `N,N,...` or an inclusive range `A..B` (at most 10,000).
+pub fn parse_seeds(spec: &str) -> Result<Vec<u64>, String> {
+    let bad = || format!("{spec}: expected N,N,... or A..B");
+    if let Some((lo, hi)) = spec.split_once("..") {
+        let (lo, hi): (u64, u64) = (
+            lo.parse().map_err(|_| bad())?,
+            hi.parse().map_err(|_| bad())?,
+        );
+        if lo > hi || hi - lo >= 10_000 {
+            return Err(bad());
+        }
+        return Ok((lo..=hi).collect());
+    }
+    spec.split(',')
+        .map(|v| v.trim().parse().map_err(|_| bad()))
+        .collect()
 }
 
 /// `C` values tried by cross-validation.
 pub const C_GRID: [f64; 4] = [0.01, 0.03, 0.1, 0.3];
-
-/// Feature rows with labels.
-#[derive(Clone, Debug, Default)]
-pub struct Data {
-    /// Row length.
-    pub dim: usize,
-    /// Rows, `dim` bytes each.
-    pub x: Vec<u8>,
-    /// Label per row.
-    pub kind: Vec<Kind>,
-    /// Source per row.
-    pub origin: Vec<Origin>,
-    /// Cross-validation fold per row (0..5).
-    pub fold: Vec<u8>,
-}
-
-impl Data {
-    fn new(dim: usize) -> Self {
-        Data {
-            dim,
-            ..Default::default()
-        }
-    }
-    fn push(&mut self, x: &[u8], kind: Kind, origin: Origin, fold: u8) {
-        self.x.extend_from_slice(x);
-        self.kind.push(kind);
-        self.origin.push(origin);
-        self.fold.push(fold);
-    }
-    /// Rows.
-    pub fn len(&self) -> usize {
-        self.kind.len()
-    }
-    /// No rows.
-    pub fn is_empty(&self) -> bool {
-        self.kind.is_empty()
-    }
-    fn row(&self, i: usize) -> &[u8] {
-        &self.x[i * self.dim..(i + 1) * self.dim]
-    }
-    fn label(&self, i: usize) -> f64 {
-        if self.kind[i].positive() {
-            1.0
-        } else {
-            -1.0
-        }
-    }
-    /// Only the given columns.
-    fn columns(&self, cols: &[usize]) -> Data {
-        let mut d = Data::new(cols.len());
-        d.x.reserve(self.len() * cols.len());
-        for i in 0..self.len() {
-            let r = self.row(i);
-            d.x.extend(cols.iter().map(|&c| r[c]));
-        }
-        d.kind = self.kind.clone();
-        d.origin = self.origin.clone();
-        d.fold = self.fold.clone();
-        d
-    }
-}
-
-/// A trained float model: `score = Σ w_j·x_j/255 + b`.
-#[derive(Clone, Debug)]
-pub struct Linear {
-    /// Weights per feature (features in units of 1/255).
-    pub w: Vec<f32>,
-    /// Bias.
-    pub b: f32,
-    /// Epochs run.
-    pub epochs: usize,
-}
-
-impl Linear {
-    /// Score of one `u8` row.
-    pub fn score(&self, x: &[u8]) -> f32 {
-        dot(&self.w, x) + self.b
-    }
-}
-
-#[inline]
-fn dot(w: &[f32], x: &[u8]) -> f32 {
-    // Eight partial sums: lets the compiler vectorise without reassociation.
-    let mut acc = [0f32; 8];
-    let mut wc = w.chunks_exact(8);
-    let mut xc = x.chunks_exact(8);
-    for (a, b) in (&mut wc).zip(&mut xc) {
-        for k in 0..8 {
-            acc[k] += a[k] * f32::from(b[k]);
-        }
-    }
-    let mut s: f32 = acc.iter().sum();
-    for (a, b) in wc.remainder().iter().zip(xc.remainder()) {
-        s += a * f32::from(*b);
-    }
-    s / 255.0
-}
-
-/// Dual coordinate descent for the L2-loss SVM on the rows `idx` of `d`.
-/// Stops when the projected-gradient spread falls below 0.1 (LIBLINEAR's
-/// default) or after 400 epochs.
-pub fn solve(d: &Data, idx: &[usize], c: f64, seed: u64) -> Linear {
-    let dim = d.dim;
-    let mut w = vec![0f32; dim];
-    let mut b = 0f64;
-    let diag = 0.5 / c;
-    let qd: Vec<f64> = idx
-        .iter()
-        .map(|&i| {
-            let r = d.row(i);
-            let n: f64 = r.iter().map(|&v| (f64::from(v) / 255.0).powi(2)).sum();
-            n + 1.0 + diag
-        })
-        .collect();
-    let mut alpha = vec![0f64; idx.len()];
-    let mut order: Vec<usize> = (0..idx.len()).collect();
-    let mut rng = Rng::new(seed);
-    let mut epochs = 0;
-    while epochs < 400 {
-        epochs += 1;
-        rng.shuffle(&mut order);
-        let (mut pg_max, mut pg_min) = (f64::NEG_INFINITY, f64::INFINITY);
-        for &k in &order {
-            let i = idx[k];
-            let y = d.label(i);
-            let r = d.row(i);
-            let g = y * (f64::from(dot(&w, r)) + b) - 1.0 + diag * alpha[k];
-            let pg = if alpha[k] == 0.0 { g.min(0.0) } else { g };
-            pg_max = pg_max.max(pg);
-            pg_min = pg_min.min(pg);
-            if pg.abs() > 1e-12 {
-                let old = alpha[k];
-                alpha[k] = (old - g / qd[k]).max(0.0);
-                let step = ((alpha[k] - old) * y) as f32;
-                let s = step / 255.0;
-                for (wj, &xj) in w.iter_mut().zip(r) {
-                    *wj += s * f32::from(xj);
-                }
-                b += f64::from(step);
-            }
-        }
-        if pg_max - pg_min < 0.1 {
-            break;
-        }
-    }
-    Linear {
-        w,
-        b: b as f32,
-        epochs,
-    }
-}
-
-/// Accuracy of `m` on rows `idx`.
-fn accuracy(m: &Linear, d: &Data, idx: &[usize]) -> f64 {
-    let ok = idx
-        .iter()
-        .filter(|&&i| (m.score(d.row(i)) > 0.0) == d.kind[i].positive())
-        .count();
-    ok as f64 / idx.len().max(1) as f64
-}
-
-/// 5-fold cross-validated accuracy.
-pub fn cross_validate(d: &Data, c: f64, seed: u64) -> f64 {
-    let mut correct = 0.0;
-    for f in 0..5u8 {
-        let train: Vec<usize> = (0..d.len()).filter(|&i| d.fold[i] != f).collect();
-        let test: Vec<usize> = (0..d.len()).filter(|&i| d.fold[i] == f).collect();
-        let m = solve(d, &train, c, seed + u64::from(f));
-        correct += accuracy(&m, d, &test) * test.len() as f64;
-    }
-    correct / d.len() as f64
-}
 
 /// Calls `each(frame_index, luma)` for PETS frames `first..=last`.
 pub fn for_pets_frames(
@@ -256,6 +151,29 @@ pub fn for_pets_frames(
     Ok(())
 }
 
+/// Adds the features of one labelled box (and of its mirror image, for a
+/// person when `mirror` is set).
+fn push_sample(
+    d: &mut Data,
+    ex: &mut Extractor,
+    luma: Plane<'_>,
+    s: &Labelled,
+    mirror: bool,
+    origin: Origin,
+    fold: u8,
+) {
+    let flips: &[bool] = if mirror && s.kind.positive() {
+        &[false, true]
+    } else {
+        &[false]
+    };
+    for &flip in flips {
+        if let Some(x) = ex.extract_flipped(luma, &s.bbox, flip) {
+            d.push(x, s.kind, origin, fold);
+        }
+    }
+}
+
 /// Builds the base training set.
 fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Data, String> {
     let mut d = Data::new(ex.layout().dim());
@@ -284,7 +202,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
     }
     let gt = dataset::load_pets_gt(&o.data_dir)?;
     let per = PerFrame {
-        persons: 1,
+        persons: o.persons_per_frame,
         background: 3,
         fragments: 2,
         groups: true,
@@ -299,29 +217,38 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
         let fold = (f * 5 / (PETS_TRAIN_LAST + 1)) as u8;
         for s in &boxes {
-            if let Some(x) = ex.extract(luma, &s.bbox) {
-                d.push(x, s.kind, Origin::Pets, fold);
-            }
+            push_sample(&mut d, ex, luma, s, o.mirror, Origin::Pets, fold);
         }
     })?;
-    if o.sim {
-        for (k, scene) in SIM_SCENES.iter().enumerate() {
-            for &seed in SIM_TRAIN_SEEDS {
-                samples::sim::for_sim_frames(
-                    scene,
-                    seed,
-                    SIM_STRIDE,
-                    per,
-                    &mut rng,
-                    |_, luma, boxes| {
-                        for s in boxes {
-                            if let Some(x) = ex.extract(luma, &s.bbox) {
-                                d.push(x, s.kind, Origin::Sim, (k % 5) as u8);
-                            }
-                        }
-                    },
-                )?;
-            }
+    for (k, scene) in SIM_SCENES.iter().enumerate() {
+        for &seed in &o.sim_seeds {
+            samples::sim::for_sim_frames(
+                scene,
+                seed,
+                SIM_STRIDE,
+                per,
+                &mut rng,
+                |_, luma, boxes| {
+                    for s in boxes {
+                        push_sample(&mut d, ex, luma, s, o.mirror, Origin::Sim, (k % 5) as u8);
+                    }
+                },
+            )?;
+        }
+    }
+    for (k, scene) in SIM_SCENES.iter().enumerate() {
+        for &seed in &o.animal_seeds {
+            samples::sim::for_animal_frames(
+                scene,
+                seed,
+                SIM_STRIDE / 2,
+                &mut rng,
+                |_, luma, boxes| {
+                    for s in boxes {
+                        push_sample(&mut d, ex, luma, s, false, Origin::Sim, (k % 5) as u8);
+                    }
+                },
+            )?;
         }
     }
     let _ = writeln!(log, "base set: {}", counts(&d));
@@ -331,58 +258,27 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
 /// Simulated scenes used for training and evaluation.
 pub const SIM_SCENES: [&str; 6] = ["plaza", "low", "mid", "high", "wide", "busy"];
 /// Seeds of the simulated clips used for training.
-pub const SIM_TRAIN_SEEDS: &[u64] = &[1, 2];
+pub const SIM_TRAIN_SEEDS: &[u64] = &[1, 2, 3, 4, 5, 6];
 /// Seeds of the held-out simulated clips (never trained on).
 pub const SIM_EVAL_SEEDS: &[u64] = &[101];
 /// Every n-th simulated frame is sampled.
 pub const SIM_STRIDE: u64 = 10;
 
-/// Scores `model` on held-out simulated clips (seeds [`SIM_EVAL_SEEDS`]).
-pub fn evaluate_sim(model: &Model, seed: u64) -> Result<Evaluation, String> {
-    let cfg = ClassifyConfig {
-        min_height: 8,
-        ..Default::default()
-    };
-    let mut cls = Classifier::with_model(model.clone(), &cfg);
-    let mut rng = Rng::new(seed.wrapping_add(2000));
-    let mut ev = Evaluation::default();
-    for scene in SIM_SCENES {
-        for &s in SIM_EVAL_SEEDS {
-            samples::sim::for_sim_frames(
-                scene,
-                s,
-                SIM_STRIDE,
-                EVAL_PER_FRAME,
-                &mut rng,
-                |f, luma, boxes| {
-                    for b in boxes {
-                        let v = cls.classify_box(luma, &b.bbox);
-                        ev.rows.push(Scored {
-                            origin: Origin::Sim,
-                            kind: b.kind,
-                            score: v.score,
-                            frame: f as u32,
-                            bbox: b.bbox,
-                        });
-                    }
-                },
-            )?;
-        }
-    }
-    Ok(ev)
-}
-
-/// Hard negatives: every training frame, many candidates, those the first
-/// model scores above −1 (inside the margin or wrong), at most `cap`.
+/// Hard negatives: many candidate negatives on every PETS training frame
+/// (and every `mine_sim_stride`-th simulated training frame, cars and dogs
+/// included), of which those `m` scores above −1 (inside the margin or
+/// wrong) are added, the highest-scoring `cap` at most. `round` varies the
+/// draw so later rounds see new boxes.
 fn mine(
     o: &TrainOptions,
     ex: &mut Extractor,
     m: &Linear,
     d: &mut Data,
     cap: usize,
+    round: u64,
 ) -> Result<(usize, usize), String> {
     let gt = dataset::load_pets_gt(&o.data_dir)?;
-    let mut rng = Rng::new(o.seed ^ 0x5eed_0001);
+    let mut rng = Rng::new(o.seed ^ 0x5eed_0001 ^ (round << 32));
     let per = PerFrame {
         persons: 0,
         background: 12,
@@ -390,8 +286,17 @@ fn mine(
         groups: true,
     };
     let mut boxes: Vec<Labelled> = Vec::new();
-    let mut hard: Vec<(f32, Vec<u8>, Kind, u8)> = Vec::new();
+    let mut hard = Data::new(d.dim);
+    let mut scores = Vec::new();
     let mut scanned = 0;
+    let mut consider = |x: &[u8], kind: Kind, origin: Origin, fold: u8| {
+        scanned += 1;
+        let sc = m.score(x);
+        if sc > -1.0 {
+            hard.push(x, kind, origin, fold);
+            scores.push(sc);
+        }
+    };
     for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, |f, luma| {
         boxes.clear();
         let g = dataset::boxes_of_frame(&gt, f);
@@ -399,20 +304,37 @@ fn mine(
         let fold = (f * 5 / (PETS_TRAIN_LAST + 1)) as u8;
         for s in &boxes {
             if let Some(x) = ex.extract(luma, &s.bbox) {
-                scanned += 1;
-                let sc = m.score(x);
-                if sc > -1.0 {
-                    hard.push((sc, x.to_vec(), s.kind, fold));
-                }
+                consider(x, s.kind, Origin::Pets, fold);
             }
         }
     })?;
-    hard.sort_by(|a, b| b.0.total_cmp(&a.0));
-    hard.truncate(cap);
-    for (_, x, k, f) in &hard {
-        d.push(x, *k, Origin::Pets, *f);
+    if o.mine_sim_stride > 0 {
+        for (k, scene) in SIM_SCENES.iter().enumerate() {
+            for &seed in &o.sim_seeds {
+                samples::sim::for_sim_frames(
+                    scene,
+                    seed,
+                    o.mine_sim_stride,
+                    per,
+                    &mut rng,
+                    |_, luma, boxes| {
+                        for s in boxes.iter().filter(|s| !s.kind.positive()) {
+                            if let Some(x) = ex.extract(luma, &s.bbox) {
+                                consider(x, s.kind, Origin::Sim, (k % 5) as u8);
+                            }
+                        }
+                    },
+                )?;
+            }
+        }
     }
-    Ok((scanned, hard.len()))
+    let mut order: Vec<usize> = (0..scores.len()).collect();
+    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
+    order.truncate(cap);
+    for &i in &order {
+        d.push(hard.row(i), hard.kind[i], hard.origin[i], hard.fold[i]);
+    }
+    Ok((scanned, order.len()))
 }
 
 fn counts(d: &Data) -> String {
@@ -438,48 +360,45 @@ fn counts(d: &Data) -> String {
     s
 }
 
-/// Keeps the share `keep` of HOG blocks and of LBP cells with the largest
-/// mean |w|; returns the reduced layout and the kept columns.
+/// Keeps the share `keep` of the selected HOG blocks and of the selected
+/// LBP cells with the largest mean |w| (Park et al. 2012); returns the
+/// reduced layout and the kept columns of `w` (coarse blocks and box-shape
+/// features are always kept).
 pub fn select_blocks(layout: &Layout, w: &[f32], keep: f64) -> (Layout, Vec<usize>) {
-    let nb = layout.hog_block_count();
-    let nc = layout.lbp_cell_count();
     let mean_abs = |s: &[f32]| s.iter().map(|v| v.abs()).sum::<f32>() / s.len() as f32;
-    let rank = |scores: Vec<f32>| -> Vec<bool> {
-        let n = scores.len();
+    // Ranks the selected entries of `sel` (each `len` columns of `w` from
+    // `off` on, in order) and keeps the best share; returns the kept columns.
+    let rank = |sel: &mut [bool], off: usize, len: usize, cols: &mut Vec<usize>| {
+        let present: Vec<usize> = (0..sel.len()).filter(|&i| sel[i]).collect();
+        if present.is_empty() {
+            return;
+        }
+        let score: Vec<f32> = (0..present.len())
+            .map(|k| mean_abs(&w[off + k * len..off + (k + 1) * len]))
+            .collect();
+        let n = present.len();
         let k = ((n as f64 * keep).round() as usize).clamp(1, n);
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
-        let mut sel = vec![false; n];
+        order.sort_by(|&a, &b| score[b].total_cmp(&score[a]));
+        let mut kept = vec![false; n];
         for &i in &order[..k] {
-            sel[i] = true;
+            kept[i] = true;
         }
-        sel
+        for (j, &i) in present.iter().enumerate() {
+            sel[i] = kept[j];
+            if kept[j] {
+                cols.extend(off + j * len..off + (j + 1) * len);
+            }
+        }
     };
-    let hog = rank(
-        (0..nb)
-            .map(|i| mean_abs(&w[i * BLOCK_DIM..(i + 1) * BLOCK_DIM]))
-            .collect(),
-    );
-    let off = nb * BLOCK_DIM;
-    let lbp = rank(
-        (0..nc)
-            .map(|i| mean_abs(&w[off + i * LBP_BINS..off + (i + 1) * LBP_BINS]))
-            .collect(),
-    );
-    let mut cols = Vec::new();
-    for (i, &s) in hog.iter().enumerate() {
-        if s {
-            cols.extend(i * BLOCK_DIM..(i + 1) * BLOCK_DIM);
-        }
-    }
-    for (i, &s) in lbp.iter().enumerate() {
-        if s {
-            cols.extend(off + i * LBP_BINS..off + (i + 1) * LBP_BINS);
-        }
-    }
     let mut l = layout.clone();
-    l.hog_blocks = hog;
-    l.lbp_cells = lbp;
+    let mut cols = Vec::new();
+    rank(&mut l.hog_blocks, 0, BLOCK_DIM, &mut cols);
+    let coarse = layout.hog_dim();
+    let off = coarse + layout.coarse_dim();
+    cols.extend(coarse..off);
+    rank(&mut l.lbp_cells, off, LBP_BINS, &mut cols);
+    cols.extend(off + layout.lbp_dim()..layout.dim());
     (l, cols)
 }
 
@@ -487,29 +406,39 @@ pub fn select_blocks(layout: &Layout, w: &[f32], keep: f64) -> (Layout, Vec<usiz
 pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     let t0 = Instant::now();
     o.layout.validate().map_err(|e| e.0.clone())?;
+    if let Some(s) = o
+        .sim_seeds
+        .iter()
+        .chain(&o.animal_seeds)
+        .find(|s| SIM_EVAL_SEEDS.contains(s))
+    {
+        return Err(format!("sim seed {s} is held out for evaluation"));
+    }
     let mut log = String::new();
     let l = &o.layout;
     let _ = writeln!(
         log,
-        "# stature classifier training report\n\nlayout: window {}x{}, margin {}/256, HOG cell {} ({} blocks), LBP cell {} ({} cells, threshold {}), dim {}, layout hash {:016x}\nseed {}, PETS training frames 0..={} every {} (mining: every frame), held out: {}..=794\n",
-        l.win_w, l.win_h, l.margin_q8, l.hog_cell, l.selected_blocks(), l.lbp_cell, l.selected_lbp_cells(), l.lbp_threshold, l.dim(), l.hash(),
+        "# stature classifier training report\n\nlayout: {}\nseed {}, PETS training frames 0..={} every {} (mining: every frame), held out: {}..=794\n",
+        l.describe(),
         o.seed, PETS_TRAIN_LAST, o.pets_stride, PETS_TRAIN_LAST + 1
     );
     let _ = writeln!(
         log,
-        "simulated scenes: {} (scenes {:?}, training seeds {:?}, every {} frames; held out: seeds {:?})\n",
-        if o.sim { "used" } else { "not used" },
-        SIM_SCENES, SIM_TRAIN_SEEDS, SIM_STRIDE, SIM_EVAL_SEEDS
+        "simulated scenes {:?}, training seeds {:?}, every {} frames (hard negatives mined: {}); cars and dogs only: seeds {:?}, every {} frames; held out: seeds {:?}\nmirrored people: {}; {} jittered box(es) per person; kind weights {:?} ({:?}); mining rounds {}; block selection: keep {}\n",
+        SIM_SCENES, o.sim_seeds, SIM_STRIDE,
+        if o.mine_sim_stride == 0 { "none".to_string() } else { format!("every {} frames", o.mine_sim_stride) },
+        o.animal_seeds, SIM_STRIDE / 2, SIM_EVAL_SEEDS,
+        o.mirror, o.persons_per_frame, o.kind_weights.0, Kind::ALL.map(|k| k.name()), o.mining_rounds, o.select
     );
     let mut ex = Extractor::new(l);
     let mut d = base_set(o, &mut ex, &mut log)?;
-    let all: Vec<usize> = (0..d.len()).collect();
+    let kw = &o.kind_weights;
     let c = match o.c {
         Some(c) => c,
         None => {
             let mut best = (0.0, C_GRID[0]);
             for &c in &C_GRID {
-                let acc = cross_validate(&d, c, o.seed);
+                let acc = cross_validate(&d, c, kw, o.seed);
                 let _ = writeln!(
                     log,
                     "C = {c}: 5-fold CV accuracy on the base set {:.2} %",
@@ -523,22 +452,26 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         }
     };
     let _ = writeln!(log, "C = {c}");
-    let m1 = solve(&d, &all, c, o.seed);
-    let _ = writeln!(
-        log,
-        "round 1: {} epochs, training accuracy {:.2} %",
-        m1.epochs,
-        accuracy(&m1, &d, &all) * 100.0
-    );
-    let (scanned, added) = mine(o, &mut ex, &m1, &mut d, 4000)?;
-    let _ = writeln!(
-        log,
-        "hard-negative mining: {scanned} candidate negatives scored, {added} with score > -1 added"
-    );
+    for round in 0..o.mining_rounds {
+        let all: Vec<usize> = (0..d.len()).collect();
+        let m = solve(&d, &all, c, kw, o.seed);
+        let _ = writeln!(
+            log,
+            "round {}: {} epochs, training accuracy {:.2} %",
+            round + 1,
+            m.epochs,
+            accuracy(&m, &d, &all) * 100.0
+        );
+        let (scanned, added) = mine(o, &mut ex, &m, &mut d, 4000, round as u64)?;
+        let _ = writeln!(
+            log,
+            "hard-negative mining: {scanned} candidate negatives scored, {added} with score > -1 added"
+        );
+    }
     let _ = writeln!(log, "final set: {}", counts(&d));
     let (layout, d) = if o.select < 1.0 {
         let all: Vec<usize> = (0..d.len()).collect();
-        let full = solve(&d, &all, c, o.seed);
+        let full = solve(&d, &all, c, kw, o.seed);
         let (layout, cols) = select_blocks(l, &full.w, o.select);
         let _ = writeln!(
             log,
@@ -553,14 +486,16 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     } else {
         (l.clone(), d)
     };
-    let cv = cross_validate(&d, c, o.seed);
-    let _ = writeln!(
-        log,
-        "5-fold CV accuracy on the final set: {:.2} %",
-        cv * 100.0
-    );
+    if !o.skip_final_cv {
+        let cv = cross_validate(&d, c, kw, o.seed);
+        let _ = writeln!(
+            log,
+            "5-fold CV accuracy on the final set: {:.2} %",
+            cv * 100.0
+        );
+    }
     let all: Vec<usize> = (0..d.len()).collect();
-    let m = solve(&d, &all, c, o.seed);
+    let m = solve(&d, &all, c, kw, o.seed);
     let model = Model::quantise(layout, &m.w, m.b);
     let agree = all
         .iter()
@@ -585,17 +520,25 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         log.push('\n');
         log.push_str(&ev.det_table());
         if std::env::var_os("STATURE_TRAIN_DEBUG").is_some() {
-            let mut bad: Vec<&Scored> = ev
-                .rows
-                .iter()
-                .filter(|r| r.kind.positive() != (r.score > 0.0))
-                .collect();
-            bad.sort_by(|a, b| a.score.abs().total_cmp(&b.score.abs()).reverse());
-            for r in bad.iter().take(60) {
+            // Ranking quality for comparing variants (never a reported
+            // result: the best threshold is chosen on the held-out rows).
+            for o in [Origin::Pets, Origin::Sim] {
+                let best = (-40..=40)
+                    .map(|k| {
+                        let e = Evaluation {
+                            rows: ev.rows.clone(),
+                            threshold: k as f32 * 0.05,
+                        };
+                        (e.metrics(|r| r.origin == o).accuracy(), k as f32 * 0.05)
+                    })
+                    .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
                 let _ = writeln!(
                     log,
-                    "wrong: frame {} {:?} {:?} score {:.2}",
-                    r.frame, r.kind, r.bbox, r.score
+                    "debug {}: AUC {:.4}, oracle accuracy {:.2} % at {:+.2}",
+                    o.name(),
+                    ev.auc(|r| r.origin == o),
+                    best.0 * 100.0,
+                    best.1
                 );
             }
         }
@@ -603,194 +546,38 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     Ok((model, log))
 }
 
-/// One scored evaluation box.
-#[derive(Clone, Copy, Debug)]
-pub struct Scored {
-    /// Source.
-    pub origin: Origin,
-    /// Truth.
-    pub kind: Kind,
-    /// SVM score.
-    pub score: f32,
-    /// Frame index (0 for still crops).
-    pub frame: u32,
-    /// The box scored.
-    pub bbox: crate::detect::BBox,
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// Scored held-out boxes.
-#[derive(Clone, Debug, Default)]
-pub struct Evaluation {
-    /// Every box.
-    pub rows: Vec<Scored>,
-    /// Threshold for the tables.
-    pub threshold: f32,
-}
-
-/// Accuracy, precision, recall of "single human" over some rows.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Metrics {
-    /// Rows.
-    pub n: usize,
-    /// True positives.
-    pub tp: usize,
-    /// False positives.
-    pub fp: usize,
-    /// True negatives.
-    pub tn: usize,
-    /// False negatives.
-    pub fn_: usize,
-}
-
-impl Metrics {
-    /// Share of rows right.
-    pub fn accuracy(&self) -> f64 {
-        (self.tp + self.tn) as f64 / self.n.max(1) as f64
-    }
-    /// Share of accepted rows that are people.
-    pub fn precision(&self) -> f64 {
-        self.tp as f64 / (self.tp + self.fp).max(1) as f64
-    }
-    /// Share of people accepted.
-    pub fn recall(&self) -> f64 {
-        self.tp as f64 / (self.tp + self.fn_).max(1) as f64
-    }
-}
-
-impl Evaluation {
-    /// Metrics over rows passing `filter`.
-    pub fn metrics(&self, filter: impl Fn(&Scored) -> bool) -> Metrics {
-        let mut m = Metrics::default();
-        for r in self.rows.iter().filter(|r| filter(r)) {
-            m.n += 1;
-            match (r.kind.positive(), r.score > self.threshold) {
-                (true, true) => m.tp += 1,
-                (true, false) => m.fn_ += 1,
-                (false, true) => m.fp += 1,
-                (false, false) => m.tn += 1,
-            }
+    #[test]
+    fn seeds_parse() {
+        assert_eq!(parse_seeds("3").unwrap(), vec![3]);
+        assert_eq!(parse_seeds("1, 5,9").unwrap(), vec![1, 5, 9]);
+        assert_eq!(parse_seeds("4..6").unwrap(), vec![4, 5, 6]);
+        for bad in ["", "a", "6..4", "1..", "0..20000", "1,,2"] {
+            assert!(parse_seeds(bad).is_err(), "{bad}");
         }
-        m
     }
 
-    /// Markdown table: per source, then per source and kind.
-    pub fn table(&self) -> String {
-        let mut s = String::from(
-            "| source | regions | accuracy | precision | recall |\n| --- | ---: | ---: | ---: | ---: |\n",
-        );
-        for o in [Origin::Mit, Origin::Pets, Origin::Sim] {
-            let m = self.metrics(|r| r.origin == o);
-            if m.n == 0 {
-                continue;
-            }
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:.2} % | {:.2} % | {:.2} % |",
-                o.name(),
-                m.n,
-                m.accuracy() * 100.0,
-                m.precision() * 100.0,
-                m.recall() * 100.0
-            );
-            for k in Kind::ALL {
-                let m = self.metrics(|r| r.origin == o && r.kind == k);
-                if m.n > 0 {
-                    let _ = writeln!(
-                        s,
-                        "| {} {} | {} | {:.2} % | | |",
-                        o.name(),
-                        k.name(),
-                        m.n,
-                        m.accuracy() * 100.0
-                    );
-                }
-            }
-        }
-        s
+    #[test]
+    fn selection_keeps_the_largest_blocks_and_the_fixed_parts() {
+        let l = Layout::default_layout();
+        let dim = l.dim();
+        // Weight magnitude grows with the column: the last blocks/cells win.
+        let w: Vec<f32> = (0..dim).map(|i| i as f32).collect();
+        let (s, cols) = select_blocks(&l, &w, 0.5);
+        s.validate().unwrap();
+        assert_eq!(cols.len(), s.dim());
+        let half = |n: usize| (n as f64 * 0.5).round() as usize;
+        assert_eq!(s.selected_blocks(), half(l.hog_block_count()));
+        assert_eq!(s.selected_lbp_cells(), half(l.lbp_cell_count()));
+        assert!(s.hog_blocks[l.hog_block_count() - 1] && !s.hog_blocks[0]);
+        assert!(s.lbp_cells[l.lbp_cell_count() - 1] && !s.lbp_cells[0]);
+        // Columns ascend, and coarse blocks and box-shape features are kept.
+        assert!(cols.windows(2).all(|p| p[0] < p[1]));
+        let coarse = l.hog_dim()..l.hog_dim() + l.coarse_dim();
+        assert!(coarse.clone().all(|c| cols.contains(&c)));
+        assert!((dim - usize::from(l.aspect_bins)..dim).all(|c| cols.contains(&c)));
     }
-
-    /// DET/ROC table: miss rate and false-positive rate per threshold,
-    /// over all rows and per source.
-    pub fn det_table(&self) -> String {
-        let origins: Vec<Origin> = [Origin::Mit, Origin::Pets, Origin::Sim]
-            .into_iter()
-            .filter(|o| self.rows.iter().any(|r| r.origin == *o))
-            .collect();
-        let mut s = String::from("| threshold | miss rate (all) | false-positive rate (all) |");
-        for o in &origins {
-            let _ = write!(s, " miss {} | FP {} |", o.name(), o.name());
-        }
-        s.push_str("\n| ---: | ---: | ---: |");
-        for _ in &origins {
-            s.push_str(" ---: | ---: |");
-        }
-        s.push('\n');
-        for k in -8..=8 {
-            let t = k as f32 * 0.25;
-            let e = Evaluation {
-                rows: self.rows.clone(),
-                threshold: t,
-            };
-            let rate = |m: Metrics| {
-                (
-                    m.fn_ as f64 * 100.0 / (m.tp + m.fn_).max(1) as f64,
-                    m.fp as f64 * 100.0 / (m.fp + m.tn).max(1) as f64,
-                )
-            };
-            let (mr, fp) = rate(e.metrics(|_| true));
-            let _ = write!(s, "| {t:+.2} | {mr:.2} % | {fp:.2} % |");
-            for o in &origins {
-                let (mr, fp) = rate(e.metrics(|r| r.origin == *o));
-                let _ = write!(s, " {mr:.2} % | {fp:.2} % |");
-            }
-            s.push('\n');
-        }
-        s
-    }
-}
-
-/// How the held-out PETS boxes are drawn: one jittered copy of every clean
-/// person, 3 background boxes, 2 fragments and every group per frame.
-pub const EVAL_PER_FRAME: PerFrame = PerFrame {
-    persons: 1,
-    background: 3,
-    fragments: 2,
-    groups: true,
-};
-
-/// Scores `model` on held-out PETS frames 600–794 with the production
-/// [`Classifier`] path (threshold 0).
-pub fn evaluate_pets(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
-    let cfg = ClassifyConfig {
-        min_height: 8,
-        ..Default::default()
-    };
-    let mut cls = Classifier::with_model(model.clone(), &cfg);
-    let gt = dataset::load_pets_gt(data_dir)?;
-    let mut rng = Rng::new(seed.wrapping_add(1000));
-    let mut boxes = Vec::new();
-    let mut ev = Evaluation::default();
-    for_pets_frames(data_dir, PETS_TRAIN_LAST + 1, 794, |f, luma| {
-        boxes.clear();
-        let g = dataset::boxes_of_frame(&gt, f);
-        samples::pets_frame_samples(
-            g,
-            luma.width,
-            luma.height,
-            EVAL_PER_FRAME,
-            &mut rng,
-            &mut boxes,
-        );
-        for s in &boxes {
-            let v = cls.classify_box(luma, &s.bbox);
-            ev.rows.push(Scored {
-                origin: Origin::Pets,
-                kind: s.kind,
-                score: v.score,
-                frame: f,
-                bbox: s.bbox,
-            });
-        }
-    })?;
-    Ok(ev)
 }

@@ -1,16 +1,18 @@
 //! Region box → fixed-size window on the Y plane (bilinear, fixed point).
 //!
 //! The window keeps the layout's aspect ratio. Its height is the box height
-//! plus a margin above and below ([`Layout::margin_q8`]); if the box (plus
-//! the same relative margin left and right) is wider than that, the window
-//! grows to fit the width instead, so a wide region (a group, a car) is
-//! shrunk whole rather than cropped. The box centre is the window centre.
+//! plus a margin above and below ([`Layout::margin_q8`]). With
+//! [`Fit::Contain`], if the box (plus the same relative margin left and
+//! right) is wider than that, the window grows to fit the width instead, so
+//! a wide region (a group, a car) is shrunk whole rather than cropped; with
+//! [`Fit::Height`] the sides are cropped instead. The box centre is the
+//! window centre.
 //!
 //! The window is sampled with a one-pixel border, `(win_w + 2)` ×
 //! `(win_h + 2)`, so that gradients and LBP codes exist at every window
 //! pixel. Samples outside the plane repeat its edge pixels.
 
-use super::layout::Layout;
+use super::layout::{Fit, Layout, ASPECT_CENTRES_Q8};
 use crate::detect::BBox;
 use crate::frame::Plane;
 
@@ -38,7 +40,7 @@ pub fn window_rect(bbox: &BBox, layout: &Layout) -> WindowRect {
     let mut height_q8 = bh * 256 + 2 * bh * m;
     let mut width_q8 = height_q8 * ww / wh;
     let need_w_q8 = bw * 256 + 2 * bw * m;
-    if need_w_q8 > width_q8 {
+    if layout.fit == Fit::Contain && need_w_q8 > width_q8 {
         width_q8 = need_w_q8;
         height_q8 = width_q8 * wh / ww;
     }
@@ -51,6 +53,34 @@ pub fn window_rect(bbox: &BBox, layout: &Layout) -> WindowRect {
         width: width_q8 << 8,
         height: height_q8 << 8,
     }
+}
+
+/// Writes the box-shape features of `bbox` to `out` (one per entry of
+/// [`ASPECT_CENTRES_Q8`]): the width/height ratio `r` in Q8 (integer
+/// division, exact) votes 255 split linearly between the two nearest bin
+/// centres, all of it to the end bin outside the centres' range.
+pub fn aspect_features(bbox: &BBox, out: &mut [u8]) {
+    out.fill(0);
+    let n = ASPECT_CENTRES_Q8.len().min(out.len());
+    if n == 0 {
+        return;
+    }
+    // width ≤ 65536, so width · 256 < 2^25.
+    let r = bbox.width() * 256 / bbox.height().max(1);
+    let c = &ASPECT_CENTRES_Q8[..n];
+    if r <= c[0] {
+        out[0] = 255;
+        return;
+    }
+    if r >= c[n - 1] {
+        out[n - 1] = 255;
+        return;
+    }
+    let k = c.iter().rposition(|&v| v <= r).unwrap_or(0);
+    // 255 · (r − c_k) < 255 · 2^9: no overflow.
+    let hi = (255 * (r - c[k]) + (c[k + 1] - c[k]) / 2) / (c[k + 1] - c[k]);
+    out[k + 1] = hi as u8;
+    out[k] = (255 - hi) as u8;
 }
 
 /// One axis of the sampling grid: for each window coordinate (border
@@ -96,6 +126,11 @@ impl Axis {
     }
 }
 
+/// Widest run of source columns the vertical-first path blends (see
+/// [`Sampler::sample`]); a power of two, so masked offsets need no bounds
+/// check.
+const SPAN: usize = 2048;
+
 /// Resamples boxes into a bordered window; owns its scratch.
 #[derive(Clone, Debug)]
 pub struct Sampler {
@@ -103,6 +138,15 @@ pub struct Sampler {
     ys: Axis,
     w: usize,
     h: usize,
+    /// Per window column, its first source column minus the row's first.
+    offs: Vec<u16>,
+    /// Per window column, the Q8 weights of its two source columns.
+    wx: [Vec<u16>; 2],
+    /// One window row's two blended source columns per pixel.
+    taps: [Vec<u16>; 2],
+    /// The source columns of one window row blended vertically (Q8), one
+    /// spare entry so that `offset + 1` stays inside.
+    blend: Box<[u16; SPAN + 1]>,
 }
 
 impl Sampler {
@@ -115,6 +159,10 @@ impl Sampler {
             ys: Axis::with_len(h + 2),
             w,
             h,
+            offs: vec![0; w + 2],
+            wx: [vec![0; w + 2], vec![0; w + 2]],
+            taps: [vec![0; w + 2], vec![0; w + 2]],
+            blend: Box::new([0; SPAN + 1]),
         }
     }
 
@@ -134,32 +182,91 @@ impl Sampler {
     }
 
     /// Samples `rect` of `luma` into `out` (`len()` bytes, row stride
-    /// `stride()`). Bilinear in Q8 weights; the sum of four products is at
-    /// most 255·2^16 and rounds to nearest. Returns `false` (and leaves
-    /// `out` alone) for a plane under 2×2 pixels or a short `out`.
+    /// `stride()`), bilinear in Q8 weights. Per window row the two source
+    /// rows are first blended vertically, `v = p·(256 − fy) + q·fy` (≤
+    /// 255·256, exact in `u16`), over the contiguous run of source columns
+    /// the window reads (a loop the compiler vectorises); then each window
+    /// pixel is `(v_a·(256 − fx) + v_{a+1}·fx + 2^15) >> 16` (at most
+    /// 255·2^16, rounding to nearest). That is the same integer as the
+    /// four-tap form, which is kept for windows reading more than
+    /// [`SPAN`] source columns. Returns `false` (and leaves `out` alone)
+    /// for a plane under 2×2 pixels or a short `out`.
     pub fn sample(&mut self, luma: Plane<'_>, rect: &WindowRect, out: &mut [u8]) -> bool {
         if luma.width < 2 || luma.height < 2 || out.len() < self.len() {
             return false;
         }
         self.xs.fill(rect.left, rect.width, luma.width);
         self.ys.fill(rect.top, rect.height, luma.height);
+        // xs.a is non-decreasing and every a + 1 is inside the plane.
+        let first = self.xs.a[0] as usize;
+        let end = self.xs.a[self.w + 1] as usize + 2;
+        if end - first > SPAN {
+            self.sample_four_tap(luma, out);
+            return true;
+        }
+        let [wx0, wx1] = &mut self.wx;
+        for (((o, w0), w1), (&a, &f)) in self
+            .offs
+            .iter_mut()
+            .zip(wx0.iter_mut())
+            .zip(wx1.iter_mut())
+            .zip(self.xs.a.iter().zip(&self.xs.frac))
+        {
+            *o = (a as usize - first) as u16;
+            (*w0, *w1) = ((256 - f) as u16, f as u16);
+        }
         let stride = self.stride();
         for (j, row_out) in out.chunks_exact_mut(stride).take(self.h + 2).enumerate() {
             let ya = self.ys.a[j] as usize;
-            let ra = luma.row(ya);
-            let rb = luma.row(ya + 1);
+            let (Some(ra), Some(rb)) = (
+                luma.row(ya).get(first..end),
+                luma.row(ya + 1).get(first..end),
+            ) else {
+                continue;
+            };
+            let fy = self.ys.frac[j] as u16;
+            let gy = 256 - fy;
+            for ((v, &p), &q) in self.blend.iter_mut().zip(ra).zip(rb) {
+                *v = u16::from(p) * gy + u16::from(q) * fy;
+            }
+            // Gather the two taps of every pixel (scalar loads), then blend
+            // them in a loop the compiler vectorises.
+            let [t0, t1] = &mut self.taps;
+            for ((a, b), &k) in t0.iter_mut().zip(t1.iter_mut()).zip(&self.offs) {
+                let k = usize::from(k) & (SPAN - 1);
+                (*a, *b) = (self.blend[k], self.blend[k + 1]);
+            }
+            let [w0, w1] = &self.wx;
+            for (((o, &a), &b), (&w0, &w1)) in row_out
+                .iter_mut()
+                .zip(t0.iter())
+                .zip(t1.iter())
+                .zip(w0.iter().zip(w1))
+            {
+                let v = u32::from(a) * u32::from(w0) + u32::from(b) * u32::from(w1);
+                *o = ((v + (1 << 15)) >> 16) as u8;
+            }
+        }
+        true
+    }
+
+    /// The same samples, four taps per pixel (for very wide windows).
+    fn sample_four_tap(&self, luma: Plane<'_>, out: &mut [u8]) {
+        let stride = self.stride();
+        for (j, row_out) in out.chunks_exact_mut(stride).take(self.h + 2).enumerate() {
+            let ya = self.ys.a[j] as usize;
+            let (ra, rb) = (luma.row(ya), luma.row(ya + 1));
             let fy = self.ys.frac[j];
             for ((o, &xa), &fx) in row_out.iter_mut().zip(&self.xs.a).zip(&self.xs.frac) {
                 let xa = xa as usize;
                 let (Some(p), Some(q)) = (ra.get(xa..xa + 2), rb.get(xa..xa + 2)) else {
                     continue;
                 };
-                let top = u32::from(p[0]) * (256 - fx) + u32::from(p[1]) * fx;
-                let bot = u32::from(q[0]) * (256 - fx) + u32::from(q[1]) * fx;
-                *o = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+                let v0 = u32::from(p[0]) * (256 - fy) + u32::from(q[0]) * fy;
+                let v1 = u32::from(p[1]) * (256 - fy) + u32::from(q[1]) * fy;
+                *o = ((v0 * (256 - fx) + v1 * fx + (1 << 15)) >> 16) as u8;
             }
         }
-        true
     }
 }
 
@@ -167,9 +274,13 @@ impl Sampler {
 mod tests {
     use super::*;
 
+    fn contain() -> Layout {
+        Layout::full(32, 64, 43, 4, 8, 2).unwrap()
+    }
+
     #[test]
     fn tall_box_gets_vertical_margin_and_aspect() {
-        let l = Layout::default_layout();
+        let l = contain();
         let b = BBox {
             x0: 100,
             y0: 50,
@@ -187,17 +298,25 @@ mod tests {
     }
 
     #[test]
-    fn wide_box_widens_the_window() {
-        let l = Layout::default_layout();
+    fn wide_box_widens_the_window_or_is_cropped() {
         let b = BBox {
             x0: 0,
             y0: 0,
             x1: 199,
             y1: 49,
         };
-        let r = window_rect(&b, &l);
+        let r = window_rect(&b, &contain());
         assert!(r.width >= 200 << 16);
         assert_eq!(r.height, r.width * 2);
+        let mut l = contain();
+        l.fit = Fit::Height;
+        let r = window_rect(&b, &l);
+        let h = r.height as f64 / 65536.0;
+        assert!((h - 50.0 * (1.0 + 2.0 * 43.0 / 256.0)).abs() < 0.01, "{h}");
+        assert_eq!(r.height, r.width * 2);
+        // Still centred on the box.
+        let cx = (r.left as f64 + r.width as f64 / 2.0) / 65536.0;
+        assert!((cx - 99.5).abs() < 0.01, "{cx}");
     }
 
     #[test]
@@ -221,5 +340,75 @@ mod tests {
                 assert_eq!(out[j * 34 + i], data[(19 + j) * w + 9 + i], "({i},{j})");
             }
         }
+    }
+
+    /// Both sampling paths (vertical-first, and four taps for windows
+    /// reading more than `SPAN` columns) give exactly the four-tap bilinear
+    /// value, on boxes shrunk, enlarged and reaching past the plane.
+    #[test]
+    fn samples_match_the_four_tap_definition() {
+        let l = contain();
+        let (w, h) = (3000usize, 300usize);
+        let data: Vec<u8> = (0..w * h)
+            .map(|i| ((i % w) * 13 + (i / w) * 7 + (i * i) % 17) as u8)
+            .collect();
+        let plane = Plane::new(&data, w, h).unwrap();
+        let mut s = Sampler::new(&l);
+        let mut out = vec![0; s.len()];
+        let boxes = [
+            (100, 20, 150, 170),    // shrunk
+            (500, 100, 510, 119),   // enlarged
+            (2980, 280, 2999, 299), // past the corner
+            (10, 100, 2990, 140),   // wide: more than SPAN columns
+        ];
+        for (x0, y0, x1, y1) in boxes {
+            let b = BBox { x0, y0, x1, y1 };
+            let r = window_rect(&b, &l);
+            assert!(s.sample(plane, &r, &mut out));
+            let (xs, ys) = (&s.xs, &s.ys);
+            for j in 0..66 {
+                for i in 0..34 {
+                    let (xa, ya) = (xs.a[i] as usize, ys.a[j] as usize);
+                    let (fx, fy) = (xs.frac[i], ys.frac[j]);
+                    let p = |x: usize, y: usize| u32::from(data[y * w + x]);
+                    let top = p(xa, ya) * (256 - fx) + p(xa + 1, ya) * fx;
+                    let bot = p(xa, ya + 1) * (256 - fx) + p(xa + 1, ya + 1) * fx;
+                    let want = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+                    assert_eq!(out[j * 34 + i], want, "box {b:?} ({i},{j})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn aspect_features_split_between_neighbouring_centres() {
+        let mut f = [0u8; 8];
+        let bx = |w: u16, h: u16| BBox {
+            x0: 0,
+            y0: 0,
+            x1: w - 1,
+            y1: h - 1,
+        };
+        // Narrower than the first centre, wider than the last: one bin.
+        aspect_features(&bx(10, 100), &mut f);
+        assert_eq!(f, [255, 0, 0, 0, 0, 0, 0, 0]);
+        aspect_features(&bx(300, 100), &mut f);
+        assert_eq!(f, [0, 0, 0, 0, 0, 0, 0, 255]);
+        // Exactly on a centre (0.40 = 102/256 of 256 px height).
+        aspect_features(&bx(102, 256), &mut f);
+        assert_eq!(f, [0, 0, 255, 0, 0, 0, 0, 0]);
+        // Halfway between 0.40 and 0.52 (r = 117.5 → 117 or 118): split.
+        aspect_features(&bx(118, 256), &mut f);
+        assert_eq!(f[2..4].iter().map(|&v| u32::from(v)).sum::<u32>(), 255);
+        assert!((120..=135).contains(&f[3]), "{f:?}");
+        // Monotone: a wider box moves weight to wider bins.
+        let mut centre = |w| {
+            aspect_features(&bx(w, 100), &mut f);
+            f.iter()
+                .enumerate()
+                .map(|(k, &v)| k as f64 * f64::from(v))
+                .sum::<f64>()
+        };
+        assert!((20..160).all(|w| centre(w) <= centre(w + 1)));
     }
 }

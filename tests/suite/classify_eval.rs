@@ -1,12 +1,13 @@
 //! Held-out accuracy of the built-in weights: PETS 2009 S2.L1 frames
 //! 600–794 and simulated clips with seeds the trainer never uses. Floors
-//! sit a few points under the measured values in `bench/RESULTS.md`
-//! ("Classification"); they are not the targets, which the current
-//! weights miss (see there).
+//! sit just under the measured values in `bench/RESULTS.md`
+//! ("Classification"); the targets are there too (the sim accuracy
+//! and the dog targets are missed, so the floors for them are lower than
+//! the targets).
 
+use stature::classify::eval::{evaluate_pets, evaluate_sim};
 use stature::classify::samples::{Kind, Origin};
 use stature::classify::svm::Model;
-use stature::classify::train::{evaluate_pets, evaluate_sim};
 use stature::classify::BUILTIN_WEIGHTS;
 
 #[test]
@@ -21,11 +22,15 @@ fn held_out_pets_regions() {
     eprintln!("{}", ev.table());
     assert!(all.n > 1500, "too few regions: {}", all.n);
     assert!(of(Kind::Person).n > 500 && of(Kind::Group).n > 50);
-    assert!(all.accuracy() >= 0.86, "accuracy {:.4}", all.accuracy());
-    assert!(all.precision() >= 0.90, "precision {:.4}", all.precision());
-    assert!(all.recall() >= 0.78, "recall {:.4}", all.recall());
-    assert!(of(Kind::Background).accuracy() >= 0.97);
-    assert!(of(Kind::Fragment).accuracy() >= 0.90);
+    // Measured: 95.02 %, 94.15 %, 96.02 %.
+    assert!(all.accuracy() >= 0.94, "accuracy {:.4}", all.accuracy());
+    assert!(all.precision() >= 0.93, "precision {:.4}", all.precision());
+    assert!(all.recall() >= 0.95, "recall {:.4}", all.recall());
+    // Measured: 99.66 %, 98.97 %, 64.41 % rejected.
+    assert!(of(Kind::Background).accuracy() >= 0.99);
+    assert!(of(Kind::Fragment).accuracy() >= 0.98);
+    assert!(of(Kind::Group).accuracy() >= 0.60);
+    assert!(ev.auc(|_| true) >= 0.98, "AUC {:.4}", ev.auc(|_| true));
 }
 
 #[test]
@@ -36,22 +41,23 @@ fn held_out_sim_regions() {
     let all = ev.metrics(|_| true);
     let of = |k: Kind| ev.metrics(|r| r.kind == k);
     assert!(all.n > 2000 && of(Kind::Dog).n > 20, "{all:?}");
+    // Measured: 95.56 %, 90.17 %, 94.70 %.
+    assert!(all.accuracy() >= 0.95, "accuracy {:.4}", all.accuracy());
+    assert!(all.precision() >= 0.89, "precision {:.4}", all.precision());
+    assert!(all.recall() >= 0.93, "recall {:.4}", all.recall());
+    // Measured: 98.65 %, 91.81 %, 98.27 % rejected.
+    assert!(of(Kind::Background).accuracy() >= 0.98);
+    assert!(of(Kind::Group).accuracy() >= 0.90);
+    assert!(of(Kind::Fragment).accuracy() >= 0.97);
+    assert!(ev.auc(|_| true) >= 0.985, "AUC {:.4}", ev.auc(|_| true));
+    // Cars: none accepted. Dogs: the target is none; 7 of 32 regions (all
+    // one dog trotting away from the camera) are accepted now.
+    assert_eq!(of(Kind::Car).fp, 0, "cars accepted");
+    let dogs = of(Kind::Dog);
     assert!(
-        all.accuracy() >= SIM_ACCURACY_FLOOR,
-        "accuracy {:.4}",
-        all.accuracy()
-    );
-    assert!(all.precision() >= 0.80, "precision {:.4}", all.precision());
-    assert!(of(Kind::Background).accuracy() >= 0.97);
-    // Cars and dogs: the target is none accepted; the floor allows what
-    // the current weights do (see bench/RESULTS.md).
-    let animals = ev.metrics(|r| matches!(r.kind, Kind::Dog | Kind::Car));
-    assert!(
-        animals.fp * 4 <= animals.n,
-        "{} of {} cars/dogs accepted",
-        animals.fp,
-        animals.n
+        dogs.fp <= 8,
+        "{} of {} dog regions accepted",
+        dogs.fp,
+        dogs.n
     );
 }
-
-const SIM_ACCURACY_FLOOR: f64 = 0.85;

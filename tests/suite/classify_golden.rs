@@ -118,8 +118,14 @@ fn features_of_fixed_crops_match_the_golden_values() {
         .extract(Plane::new(&img, 96, 160).unwrap(), &crops()[0].1)
         .unwrap()
         .to_vec();
-    assert!(f[..layout.hog_dim()].iter().filter(|&&v| v > 100).count() > 50);
-    assert!(f[layout.hog_dim()..].iter().filter(|&&v| v > 100).count() > 32);
+    let (hd, cd) = (layout.hog_dim(), layout.hog_dim() + layout.coarse_dim());
+    let ld = cd + layout.lbp_dim();
+    assert!(f[..hd].iter().filter(|&&v| v > 100).count() > 50);
+    assert!(f[hd..cd].iter().filter(|&&v| v > 100).count() > 20);
+    assert!(f[cd..ld].iter().filter(|&&v| v > 100).count() > 32);
+    // A tall narrow box: all of the shape vote in the narrowest two bins.
+    assert_eq!(f[ld..].iter().map(|&v| u32::from(v)).sum::<u32>(), 255);
+    assert_eq!(f[ld + 2..].iter().map(|&v| u32::from(v)).sum::<u32>(), 0);
 }
 
 #[test]
@@ -177,26 +183,59 @@ fn corrupt_blobs_are_refused_with_the_reason() {
     );
 
     let mut hash = good.clone();
-    hash[32] ^= 0xff;
+    hash[36] ^= 0xff;
     assert!(matches!(
         err(&reseal(hash)),
         WeightsError::LayoutHash { .. }
     ));
 
     let mut fv = good.clone();
-    fv[28] = fv[28].wrapping_add(1);
+    fv[32] = fv[32].wrapping_add(1);
     assert!(matches!(
         err(&reseal(fv)),
         WeightsError::FeatureVersion { .. }
     ));
 
     let mut scale = good.clone();
-    scale[44..48].copy_from_slice(&f32::NAN.to_le_bytes());
+    scale[48..52].copy_from_slice(&f32::NAN.to_le_bytes());
     assert_eq!(err(&reseal(scale)), WeightsError::BadNumber("scale"));
 
     let mut wt = good.clone();
-    wt[27] = 2;
+    wt[30] = 2;
     assert_eq!(err(&reseal(wt)), WeightsError::WeightType(2));
+
+    // Fit code and layout flags this build does not know.
+    let mut fit = good.clone();
+    fit[27] = 7;
+    assert!(matches!(err(&reseal(fit)), WeightsError::Layout(_)));
+    let mut flags = good.clone();
+    flags[29] |= 0x80;
+    assert!(matches!(err(&reseal(flags)), WeightsError::Layout(_)));
+    // A consistent header for features without the box-shape bins: the
+    // layout hash still holds the truth.
+    let mut aspect = good.clone();
+    aspect[28] = 0;
+    assert!(matches!(
+        err(&reseal(aspect)),
+        WeightsError::LayoutHash { .. } | WeightsError::Dimension { .. }
+    ));
+}
+
+#[test]
+fn a_blob_of_the_previous_format_is_refused_by_name() {
+    // The weights shipped before feature code version 3 (format 1: no fit,
+    // box-shape or coarse fields).
+    let old = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/classifier-format1.bin"),
+    )
+    .unwrap();
+    let e = Model::from_bytes(&old).unwrap_err();
+    assert_eq!(e, WeightsError::UnsupportedVersion(1));
+    let msg = e.to_string();
+    assert!(
+        msg.contains("version 1") && msg.contains("stature train"),
+        "{msg}"
+    );
 }
 
 #[test]
