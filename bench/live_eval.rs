@@ -413,6 +413,13 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         people.len(),
         100.0 * maj as f64 / tot.max(1) as f64
     );
+    if let Some(e) = &run.estimate {
+        println!(
+            "  pipeline estimate: f {:.1} tilt {:.2} roll {:.2} hc {:.2} focal sigma {:.2} % lean {:.3} inliers {} horizon anchors {} confidence {:.2}",
+            e.geom.focal(), e.geom.tilt().to_degrees(), e.geom.roll().to_degrees(), e.camera_height,
+            100.0 * e.focal_rel_sigma, e.lean, e.inliers, e.horizon_inliers, e.confidence
+        );
+    }
     let hs = run.heights();
     {
         let maj = run.majority();

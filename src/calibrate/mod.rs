@@ -610,8 +610,9 @@ impl Calibrator {
         let focal_rel_sigma = 0.5 * (rel_d * rel_d + rel_r * rel_r).sqrt();
         let prev_f = self.estimate.map(|e| e.geom.focal());
         let change = prev_f.map_or(1.0, |p| (geom.focal() / p - 1.0).abs());
-        // Stability: smoothed agreement of successive refits.
-        self.stability = 0.7 * self.stability + 0.3 * libm::exp(-change / 0.02);
+        // Stability: smoothed agreement of successive refits (a focal
+        // length moving by 5 % between refits counts as 1/e stable).
+        self.stability = 0.7 * self.stability + 0.3 * libm::exp(-change / 0.05);
         let spread = self.spread();
         let c_tracks = 1.0 - libm::exp(-(hfit.tracks as f64) / 4.0);
         let c_prec = libm::exp(-focal_rel_sigma / 0.03);
