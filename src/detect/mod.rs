@@ -38,6 +38,7 @@
 
 pub mod background;
 pub mod chroma;
+pub mod extremes;
 pub mod morphology;
 pub mod regions;
 
@@ -117,6 +118,9 @@ pub struct DetectConfig {
     /// this fraction of the lower of two person-tall peaks beside it
     /// (people walking side by side; 0 = never cut).
     pub split_valley: f64,
+    /// Give regions' head and foot rows back what the opening took from
+    /// thin ankles and crowns ([`extremes`]).
+    pub refine_extremes: bool,
     /// Regions one frame can hold (more are counted and dropped).
     pub max_regions: u32,
     /// Foreground runs per image row budgeted for the region masks.
@@ -159,6 +163,7 @@ impl Default for DetectConfig {
             close_radius_y: 6,
             min_area_per_mpix: 400,
             split_valley: SPLIT_VALLEY,
+            refine_extremes: true,
             shadow_fill_rows: SHADOW_FILL_ROWS,
             max_regions: 64,
             max_runs_per_row: 16,
@@ -327,6 +332,12 @@ impl RegionSet {
     pub fn regions(&self) -> &[Region] {
         &self.regions
     }
+    /// Calls `f` with every region (mutable) and its runs.
+    pub fn each_mut(&mut self, mut f: impl FnMut(&mut Region, &[Run])) {
+        for r in self.regions.iter_mut() {
+            f(r, &self.runs[r.runs.start as usize..r.runs.end as usize]);
+        }
+    }
     /// Runs this set can hold in all.
     pub fn run_capacity(&self) -> usize {
         self.run_capacity
@@ -366,6 +377,9 @@ pub struct Detector {
     raw: BitMask,
     shadow: BitMask,
     clean: BitMask,
+    /// The mask before the opening, for [`extremes::refine`].
+    before_open: BitMask,
+    refine_extremes: bool,
     scratch: BitMask,
     labeller: Labeller,
     open_radius: u32,
@@ -393,6 +407,8 @@ impl Detector {
             raw: BitMask::new(size.width, size.height),
             shadow: BitMask::new(size.width, size.height),
             clean: BitMask::new(size.width, size.height),
+            before_open: BitMask::new(size.width, size.height),
+            refine_extremes: cfg.refine_extremes && cfg.open_radius > 0,
             scratch: BitMask::new(size.width, size.height),
             labeller: {
                 let mut l = Labeller::new(cfg.run_capacity(size), size.width);
@@ -455,6 +471,9 @@ impl Detector {
             }
         }
         let (o, cx, cy) = (self.open_radius, self.close_radius, self.close_radius_y);
+        if self.refine_extremes {
+            self.before_open.copy_from(&self.clean);
+        }
         morphology::open(&mut self.clean, &mut self.scratch, o, o);
         morphology::fill_between(&mut self.clean, &self.shadow, self.shadow_fill_rows);
         morphology::close(&mut self.clean, &mut self.scratch, cx, cy);
@@ -463,6 +482,10 @@ impl Detector {
     pub fn label(&mut self, out: &mut RegionSet) {
         out.clear();
         self.labeller.label(&self.clean, self.min_area, out);
+        if self.refine_extremes {
+            let before = &self.before_open;
+            out.each_mut(|r, runs| extremes::refine(r, runs, before, regions::FOOT_PIXELS));
+        }
     }
     /// The foreground mask straight from the model (shadows excluded).
     pub fn raw_mask(&self) -> &BitMask {
