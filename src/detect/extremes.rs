@@ -14,22 +14,53 @@
 //! head up to the topmost row found.
 
 use super::morphology::BitMask;
+use super::regions::BottomPixels;
 use super::{Region, Run};
 
 /// Rows searched beyond a region's bottom or top row.
 pub const MAX_ROWS: usize = 4;
 
-/// Pixels of row `y` of `mask` in columns `a..=b`, and the sum of their
-/// columns.
-fn row_pixels(mask: &BitMask, y: usize, a: usize, b: usize) -> (u32, u64) {
-    let (mut n, mut sx) = (0u32, 0u64);
-    for x in a..=b.min(mask.width().saturating_sub(1)) {
+/// The pixels of row `y` of `mask` in columns `lo..=hi`: how many, the
+/// sum of their columns, and the first and last column (`None`: none).
+fn row_pixels(mask: &BitMask, y: usize, lo: usize, hi: usize) -> Option<(u32, u64, usize, usize)> {
+    let (mut n, mut sx, mut a, mut b) = (0u32, 0u64, usize::MAX, 0);
+    for x in lo..=hi.min(mask.width().saturating_sub(1)) {
         if mask.get(x, y) {
             n += 1;
             sx += x as u64;
+            a = a.min(x);
+            b = b.max(x);
         }
     }
-    (n, sx)
+    (n > 0).then_some((n, sx, a, b))
+}
+
+/// Rows of `mask` continuing a region beyond row `from` (upward with
+/// `up`), each with pixels within one column of the previous row's:
+/// `f(row, pixels, column sum)` for each, nearest first, at most
+/// [`MAX_ROWS`].
+fn beyond(
+    mask: &BitMask,
+    from: u16,
+    span: (usize, usize),
+    up: bool,
+    mut f: impl FnMut(usize, u32, u64),
+) {
+    let (mut a, mut b) = span;
+    let mut y = usize::from(from);
+    for _ in 0..MAX_ROWS {
+        y = match (up, y) {
+            (true, 0) => return,
+            (true, _) => y - 1,
+            (false, _) if y + 1 >= mask.height() => return,
+            (false, _) => y + 1,
+        };
+        let Some((n, sx, fa, fb)) = row_pixels(mask, y, a.saturating_sub(1), b + 1) else {
+            return;
+        };
+        f(y, n, sx);
+        (a, b) = (fa, fb);
+    }
 }
 
 /// Columns `[min x0, max x1]` of the runs on row `y` (runs sorted by row).
@@ -50,94 +81,31 @@ pub fn refine(region: &mut Region, runs: &[Run], before_open: &BitMask, foot_pix
     let (Some(first), Some(last)) = (runs.first(), runs.last()) else {
         return;
     };
-    let h = before_open.height();
-    // Below: collect (row, n, sum x) of the extension, bottom-most last.
-    let mut ext = [(0usize, 0u32, 0u64); MAX_ROWS];
-    let mut n_ext = 0;
-    if let Some((mut a, mut b)) = span(runs, last.y) {
-        let mut y = usize::from(last.y) + 1;
-        while n_ext < MAX_ROWS && y < h {
-            let (lo, hi) = (a.saturating_sub(1), b + 1);
-            let (n, sx) = row_pixels(before_open, y, lo, hi);
-            if n == 0 {
-                break;
-            }
+    // Below: eq. 5 over the recovered rows (lowest first), then the region's.
+    if let Some(s) = span(runs, last.y) {
+        let mut ext = [(0usize, 0u32, 0u64); MAX_ROWS];
+        let mut n_ext = 0;
+        beyond(before_open, last.y, s, false, |y, n, sx| {
             ext[n_ext] = (y, n, sx);
             n_ext += 1;
-            // The next row continues under what was found here.
-            let (mut fa, mut fb) = (usize::MAX, 0);
-            for x in lo..=hi.min(before_open.width().saturating_sub(1)) {
-                if before_open.get(x, y) {
-                    fa = fa.min(x);
-                    fb = fb.max(x);
-                }
+        });
+        if n_ext > 0 {
+            let mut b = BottomPixels::new(foot_pixels);
+            for &(y, n, sx) in ext[..n_ext].iter().rev() {
+                b.add_row(y as f64, n, 2.0 * sx as f64);
             }
-            (a, b) = (fa, fb);
-            y += 1;
-        }
-    }
-    if n_ext > 0 {
-        // Eq. 5 over the extension rows (lowest first), then the region's.
-        let mut need = foot_pixels;
-        let (mut sx2, mut sy, mut got) = (0f64, 0f64, 0u32);
-        for &(y, n, sx) in ext[..n_ext].iter().rev() {
-            let take = n.min(need);
-            sx2 += 2.0 * sx as f64 * f64::from(take) / f64::from(n);
-            sy += y as f64 * f64::from(take);
-            got += take;
-            need -= take;
-            if need == 0 {
-                break;
+            b.add_runs(runs);
+            if let Some(m) = b.mean() {
+                region.foot = m;
             }
-        }
-        let mut i = runs.len();
-        while need > 0 && i > 0 {
-            let y = runs[i - 1].y;
-            let (mut n, mut rx2) = (0u32, 0u64);
-            while i > 0 && runs[i - 1].y == y {
-                let r = runs[i - 1];
-                let len = u32::from(r.x1 - r.x0) + 1;
-                n += len;
-                rx2 += u64::from(len) * (u64::from(r.x0) + u64::from(r.x1));
-                i -= 1;
-            }
-            let take = n.min(need);
-            sx2 += rx2 as f64 * f64::from(take) / f64::from(n);
-            sy += f64::from(y) * f64::from(take);
-            got += take;
-            need -= take;
-        }
-        if got > 0 {
-            region.foot = [
-                (sx2 / (2.0 * f64::from(got))) as f32,
-                (sy / f64::from(got)) as f32,
-            ];
         }
     }
     // Above: the topmost row reached becomes the head row.
-    if let Some((mut a, mut b)) = span(runs, first.y) {
-        let mut y = usize::from(first.y);
-        let mut top: Option<(usize, u32, u64)> = None;
-        for _ in 0..MAX_ROWS {
-            if y == 0 {
-                break;
-            }
-            y -= 1;
-            let (lo, hi) = (a.saturating_sub(1), b + 1);
-            let (n, sx) = row_pixels(before_open, y, lo, hi);
-            if n == 0 {
-                break;
-            }
-            top = Some((y, n, sx));
-            let (mut fa, mut fb) = (usize::MAX, 0);
-            for x in lo..=hi.min(before_open.width().saturating_sub(1)) {
-                if before_open.get(x, y) {
-                    fa = fa.min(x);
-                    fb = fb.max(x);
-                }
-            }
-            (a, b) = (fa, fb);
-        }
+    if let Some(s) = span(runs, first.y) {
+        let mut top = None;
+        beyond(before_open, first.y, s, true, |y, n, sx| {
+            top = Some((y, n, sx))
+        });
         if let Some((y, n, sx)) = top {
             region.head = [(sx as f64 / f64::from(n)) as f32, y as f32];
         }

@@ -466,38 +466,71 @@ fn region_of(runs: &[Run], w: usize, h: usize) -> Option<Region> {
     })
 }
 
+/// The mean position of a region's bottom-most pixels (paper eq. 5),
+/// accumulated row by row from the bottom up until `need` pixels are in.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BottomPixels {
+    need: u32,
+    sx2: f64,
+    sy: f64,
+    got: u32,
+}
+
+impl BottomPixels {
+    /// Room for `need` pixels.
+    pub(super) fn new(need: u32) -> Self {
+        BottomPixels {
+            need,
+            sx2: 0.0,
+            sy: 0.0,
+            got: 0,
+        }
+    }
+    /// Adds row `y` with `n` pixels whose columns sum to `sx2 / 2` (as many
+    /// as are still needed, at the row's mean column).
+    pub(super) fn add_row(&mut self, y: f64, n: u32, sx2: f64) {
+        let take = n.min(self.need);
+        if take == 0 {
+            return;
+        }
+        self.sx2 += sx2 * f64::from(take) / f64::from(n);
+        self.sy += y * f64::from(take);
+        self.got += take;
+        self.need -= take;
+    }
+    /// Adds the rows of `runs` (raster order) from the bottom up.
+    pub(super) fn add_runs(&mut self, runs: &[Run]) {
+        let mut i = runs.len();
+        while i > 0 && self.need > 0 {
+            let y = runs[i - 1].y;
+            let (mut n, mut rx2) = (0u32, 0u64);
+            while i > 0 && runs[i - 1].y == y {
+                let r = runs[i - 1];
+                let len = u32::from(r.x1 - r.x0) + 1;
+                n += len;
+                rx2 += u64::from(len) * (u64::from(r.x0) + u64::from(r.x1));
+                i -= 1;
+            }
+            self.add_row(f64::from(y), n, rx2 as f64);
+        }
+    }
+    /// The mean `[u, v]`; `None` before any pixel.
+    pub(super) fn mean(&self) -> Option<[f32; 2]> {
+        (self.got > 0).then(|| {
+            [
+                (self.sx2 / (2.0 * f64::from(self.got))) as f32,
+                (self.sy / f64::from(self.got)) as f32,
+            ]
+        })
+    }
+}
+
 /// Mean position of the bottom-most [`FOOT_PIXELS`] pixels of a region's
 /// runs (raster order).
 fn foot(runs: &[Run]) -> [f32; 2] {
-    let mut need = FOOT_PIXELS;
-    let (mut sx2, mut sy, mut got) = (0f64, 0f64, 0u32);
-    let mut i = runs.len();
-    while i > 0 && need > 0 {
-        let y = runs[i - 1].y;
-        let mut j = i;
-        let (mut n, mut rx2) = (0u32, 0u64);
-        while j > 0 && runs[j - 1].y == y {
-            let r = runs[j - 1];
-            let len = u32::from(r.x1 - r.x0) + 1;
-            n += len;
-            rx2 += u64::from(len) * (u64::from(r.x0) + u64::from(r.x1));
-            j -= 1;
-        }
-        let take = n.min(need);
-        // `take` pixels at the row's mean column.
-        sx2 += rx2 as f64 * f64::from(take) / f64::from(n);
-        sy += f64::from(y) * f64::from(take);
-        got += take;
-        need -= take;
-        i = j;
-    }
-    if got == 0 {
-        return [0.0, 0.0];
-    }
-    [
-        (sx2 / (2.0 * f64::from(got))) as f32,
-        (sy / f64::from(got)) as f32,
-    ]
+    let mut b = BottomPixels::new(FOOT_PIXELS);
+    b.add_runs(runs);
+    b.mean().unwrap_or([0.0, 0.0])
 }
 
 /// First column `≥ from` whose bit is set (`clear = false`) or clear

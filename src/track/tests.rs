@@ -77,6 +77,18 @@ fn region(set: &mut RegionSet, people: &[Person]) {
     set.push(r, &runs).unwrap();
 }
 
+/// A tracker with `cfg`, an empty frame and a region set for the tests.
+fn setup(cfg: &TrackConfig) -> (Tracker, Frame, RegionSet) {
+    (
+        Tracker::new(cfg, 16),
+        Frame::new(Size {
+            width: W,
+            height: H,
+        }),
+        RegionSet::with_capacity(16, 4096),
+    )
+}
+
 fn single(n: usize, yes: bool) -> Vec<Verdict> {
     vec![
         Verdict {
@@ -93,12 +105,7 @@ const BLUE: (u8, u8, u8) = (41, 240, 110);
 #[test]
 fn crossing_people_keep_their_identities_and_withhold_merged_samples() {
     let cfg = TrackConfig::default();
-    let mut t = Tracker::new(&cfg, 16);
-    let mut f = Frame::new(Size {
-        width: W,
-        height: H,
-    });
-    let mut set = RegionSet::with_capacity(16, 4096);
+    let (mut t, mut f, mut set) = setup(&cfg);
     let mut merged_fresh = 0;
     let mut merged_frames = 0;
     for k in 0..60i32 {
@@ -154,12 +161,7 @@ fn tracks_end_after_coasting_and_overflow_is_counted() {
         capacity: 4,
         ..Default::default()
     };
-    let mut t = Tracker::new(&cfg, 16);
-    let mut f = Frame::new(Size {
-        width: W,
-        height: H,
-    });
-    let mut set = RegionSet::with_capacity(16, 4096);
+    let (mut t, mut f, mut set) = setup(&cfg);
     let people: Vec<Person> = (0..6)
         .map(|i| Person {
             x0: 10 + 50 * i,
@@ -192,12 +194,7 @@ fn tracks_end_after_coasting_and_overflow_is_counted() {
 
 #[test]
 fn non_person_regions_start_no_tracks() {
-    let mut t = Tracker::new(&TrackConfig::default(), 16);
-    let mut f = Frame::new(Size {
-        width: W,
-        height: H,
-    });
-    let mut set = RegionSet::with_capacity(16, 4096);
+    let (mut t, mut f, mut set) = setup(&TrackConfig::default());
     let car = Person {
         x0: 100,
         y0: 100,
@@ -216,12 +213,7 @@ fn non_person_regions_start_no_tracks() {
 
 #[test]
 fn cut_and_border_samples_are_rejected() {
-    let mut t = Tracker::new(&TrackConfig::default(), 16);
-    let mut f = Frame::new(Size {
-        width: W,
-        height: H,
-    });
-    let mut set = RegionSet::with_capacity(16, 4096);
+    let (mut t, mut f, mut set) = setup(&TrackConfig::default());
     let mut accepted = Vec::new();
     for k in 0..30i32 {
         let mut p = Person {
@@ -257,12 +249,7 @@ fn a_flickering_verdict_on_a_lone_walker_does_not_break_the_track() {
     // Every third frame the classifier scores the walker just below its
     // threshold: the track keeps sampling (keep_score), but a region of a
     // very different size with the same low score does not snap it.
-    let mut t = Tracker::new(&TrackConfig::default(), 16);
-    let mut f = Frame::new(Size {
-        width: W,
-        height: H,
-    });
-    let mut set = RegionSet::with_capacity(16, 4096);
+    let (mut t, mut f, mut set) = setup(&TrackConfig::default());
     let mut sampled = 0;
     for k in 0..30i32 {
         let p = Person {
@@ -313,12 +300,7 @@ fn a_duplicate_track_on_one_person_ends() {
     // once the region is whole again (one person, both tracks pick it) the
     // track overlapping it most keeps it and the duplicate coasts out.
     let cfg = TrackConfig::default();
-    let mut t = Tracker::new(&cfg, 16);
-    let mut f = Frame::new(Size {
-        width: W,
-        height: H,
-    });
-    let mut set = RegionSet::with_capacity(16, 4096);
+    let (mut t, mut f, mut set) = setup(&cfg);
     for k in 0..40i32 {
         let p = Person {
             x0: 80 + k,
