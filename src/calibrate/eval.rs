@@ -200,9 +200,7 @@ pub fn sim_people(
 /// image, per id; true heights from `geometry.json` `persons` medians.
 pub fn pets_people(dir: &std::path::Path) -> Result<BTreeMap<u32, PersonObs>, String> {
     let gt = crate::dataset::load_pets_gt(dir)?;
-    let path = dir.join("pets2009-s2l1/geometry.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    let heights = super::live::pets_person_heights(dir)?;
     let mut people: BTreeMap<u32, PersonObs> = BTreeMap::new();
     for b in &gt {
         if b.x0 < 5 || b.y0 < 5 || b.x1 > 768 - 6 || b.y1 > 576 - 6 {
@@ -214,9 +212,7 @@ pub fn pets_people(dir: &std::path::Path) -> Result<BTreeMap<u32, PersonObs>, St
             foot: [cx, f64::from(b.y1) + 0.5],
         };
         let e = people.entry(b.id).or_default();
-        e.height = json["persons"][b.id.to_string()]["height_m_median"]
-            .as_f64()
-            .unwrap_or(0.0);
+        e.height = heights.get(&b.id).copied().unwrap_or(0.0);
         e.obs.push((u64::from(b.frame), hf));
     }
     Ok(people)
