@@ -122,7 +122,7 @@ if [ "$systemd" = 1 ] && [ -z "$D" ] && has systemctl && [ -d /run/systemd/syste
     systemctl daemon-reload
     systemctl enable stature.service
     systemctl restart stature.service
-    echo "install.sh: stature enabled and started; logs: journalctl -u stature -f"
+    echo "install.sh: stature enabled and started; logs: sudo journalctl -u stature -f"
 else
     # What StateDirectory= would create.
     mkdir -p "$D/var/lib/stature"

@@ -4,7 +4,7 @@
 # Idempotent: a second run installs nothing and takes about a second.
 #
 #   cross/install.sh          # everything
-#   cross/install.sh --no-vm  # skip qemu-system-arm, busybox, kmod (VM test)
+#   cross/install.sh --no-vm  # skip qemu-system-arm, busybox, kmod, debootstrap (VM tests)
 set -euo pipefail
 
 want_vm=1
@@ -27,6 +27,8 @@ pkgs=(
 )
 if [[ $want_vm -eq 1 ]]; then
     pkgs+=(busybox-static:/bin/busybox kmod:depmod cpio:cpio netcat-openbsd:nc)
+    # cross/deploy-test.sh: a Debian arm64 root file system, its disk image, ssh to it.
+    pkgs+=(debootstrap:debootstrap e2fsprogs:mke2fs qemu-utils:qemu-img openssh-client:ssh)
 fi
 
 have() {

@@ -10,8 +10,8 @@
 #      vivid platform device through sysfs (what a USB unplug looks like) and
 #      binds it again: the source must reconnect;
 #   2. captures with the armv7 build (32-bit compat ioctls on a 64-bit kernel),
-#      and runs the serial-sink test over a pseudo-terminal (qemu-user lacks
-#      the TCGETS2 ioctl it needs);
+#      and runs the serial-sink test (aarch64 and armv7 builds) over a
+#      pseudo-terminal (qemu-user lacks the TCGETS2 ioctl it needs);
 #   3. deploys the aarch64 glibc build like a new user would (board/install.sh
 #      with the rpi4 profile, the systemd unit's ExecStart run as the
 #      dedicated user through su), its UDP reports read on the host with
@@ -101,12 +101,16 @@ armv7_bin=${STATURE_ARMV7_BIN:-$target_dir/armv7-unknown-linux-gnueabihf/release
 for b in "$gnu_bin" "$armv7_bin"; do
     [[ -x $b ]] || die "no binary at $b (run cross/build.sh)"
 done
-# The serial-sink test binary (cross/test.sh built it): qemu-user cannot run
-# it (no TCGETS2), a real aarch64 kernel can.
-sinks_test=$(ls -t "$target_dir"/aarch64-unknown-linux-gnu/release/deps/sinks-* 2>/dev/null | grep -v '\.d$' | head -1 || true)
-if [[ -z $sinks_test ]]; then
-    [[ "${CI:-}" == "true" ]] && die "no aarch64 sinks test binary: run cross/test.sh first"
-    echo "vm-test: no aarch64 sinks test binary (cross/test.sh builds it): serial test skipped"
+# The serial-sink test binaries (cross/test.sh built them): qemu-user cannot
+# run them (no TCGETS2), a real kernel can: aarch64 natively, armv7 through
+# the kernel's 32-bit compat layer.
+sinks_bin() { ls -t "$target_dir/$1"/release/deps/sinks-* 2>/dev/null | grep -v '\.d$' | head -1 || true; }
+sinks_test=$(sinks_bin aarch64-unknown-linux-gnu)
+sinks_test_armv7=$(sinks_bin armv7-unknown-linux-gnueabihf)
+if [[ -z $sinks_test || -z $sinks_test_armv7 ]]; then
+    [[ "${CI:-}" == "true" ]] && die "no aarch64 and armv7 sinks test binaries: run cross/test.sh first"
+    echo "vm-test: no aarch64 and armv7 sinks test binaries (cross/test.sh builds them): serial test skipped"
+    sinks_test="" sinks_test_armv7=""
 fi
 
 # --- 3. The unit as systemd reads it (the guest has no systemd): every
@@ -152,7 +156,10 @@ for pair in aarch64-linux-gnu:ld-linux-aarch64.so.1 arm-linux-gnueabihf:ld-linux
     done
 done
 cp "$musl_bin" "$root/bin/stature-musl"
-[[ -n $sinks_test ]] && cp "$sinks_test" "$root/bin/sinks-test"
+if [[ -n $sinks_test ]]; then
+    cp "$sinks_test" "$root/bin/sinks-test"
+    cp "$sinks_test_armv7" "$root/bin/sinks-test-armv7"
+fi
 cp "$armv7_bin" "$root/bin/stature-armv7"
 # Deployment payload, as a user would scp it to the board (README: the
 # aarch64-unknown-linux-gnu build for a Pi 4).
@@ -221,6 +228,8 @@ if [ -x /bin/sinks-test ]; then
     mkdir -p /dev/pts && mount -t devpts devpts /dev/pts
     /bin/sinks-test serial_sink --test-threads=1 >>/dev/vport0p2 2>&1
     say "serial test exit \$?"
+    /bin/sinks-test-armv7 serial_sink --test-threads=1 >>/dev/vport0p2 2>&1
+    say "serial test armv7 exit \$?"
 else
     say "serial test skipped"
 fi

@@ -152,6 +152,15 @@ fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
         );
     }
     assert_eq!(unit_values(&unit, "Restart"), ["on-failure"]);
+    // A missing camera (exit 3) is retried until it appears: no start limit
+    // (any limit would end the retries after a number of attempts), with a
+    // pause between attempts.
+    assert_eq!(unit_values(&unit, "StartLimitIntervalSec"), ["0"]);
+    let pause: f64 = unit_values(&unit, "RestartSec")
+        .first()
+        .and_then(|s| s.parse().ok())
+        .expect("RestartSec in seconds");
+    assert!(pause >= 1.0, "RestartSec={pause}: a busy retry loop");
     assert_eq!(unit_values(&unit, "NoNewPrivileges"), ["yes"]);
     // Bad input (exit 2) is not retried; the exit codes are the binary's.
     assert_eq!(

@@ -1,9 +1,22 @@
 //! The simulated scene's ground truth, checked against the camera model
 //! independently of the renderer, and the renderer checked against the truth.
+//!
+//! Opening a scene ray-traces its background (five f64 rays a pixel): far
+//! the costliest step here, about 10 s a 640x480 scene and 30 s for the
+//! 1280x720 `busy` under qemu-user (cross/test.sh runs these tests on ARM).
+//! So tests that read a scene's camera, cast or truth share one instance
+//! per scene ([`shared`]) instead of each opening their own; only tests
+//! about opening itself (determinism, options, the empty twin, export)
+//! open fresh ones.
+
+use std::collections::HashMap;
+use std::ops::Range;
+use std::sync::{Mutex, MutexGuard, OnceLock};
 
 use stature::camera::{line_distance, Camera};
 use stature::frame::Frame;
-use stature::source::sim::people::Kind;
+use stature::source::sim::math::Proj;
+use stature::source::sim::people::{self, Kind};
 use stature::source::sim::{scene, ObjectTruth, SimSource};
 use stature::source::{FrameSource, Next};
 
@@ -18,15 +31,46 @@ fn frame_hash(f: &Frame) -> u64 {
     fnv1a(fnv1a(h, &f.u), &f.v)
 }
 
-/// Renders `frames` frames (every `step`-th) and hands each frame's truth to `check`.
-fn each_frame(name: &str, query: &str, step: u64, mut check: impl FnMut(&SimSource, &Frame)) {
-    let mut sim = SimSource::open(name, query).unwrap();
+/// The clip most tests share (the one the pixel-extent test was written on:
+/// the cast is drawn for the clip's length, so seed and length together fix
+/// who walks where).
+const SHARED: &str = "seed=5&frames=400";
+
+/// Scene `name` opened with `query`, once per test process: every caller
+/// gets the same instance, one at a time. Frames are a pure function of
+/// their index, so what one test rendered before does not change what the
+/// next renders; a test that panics leaves the instance usable.
+fn shared(name: &'static str, query: &'static str) -> MutexGuard<'static, SimSource> {
+    type Cell = OnceLock<Mutex<SimSource>>;
+    static OPENED: OnceLock<Mutex<HashMap<(&str, &str), &'static Cell>>> = OnceLock::new();
+    let cell: &'static Cell = *OPENED
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .entry((name, query))
+        .or_insert_with(|| Box::leak(Box::default()));
+    // Opened outside the map's lock: other scenes open in parallel.
+    cell.get_or_init(|| Mutex::new(SimSource::open(name, query).unwrap()))
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+}
+
+/// Renders every `step`-th frame of `frames` and hands each frame's truth to `check`.
+fn each_frame(
+    sim: &mut SimSource,
+    frames: Range<u64>,
+    step: usize,
+    mut check: impl FnMut(&SimSource, &Frame),
+) {
+    assert!(
+        frames.end <= sim.frames(),
+        "the clip has {} frames",
+        sim.frames()
+    );
     let mut frame = Frame::new(sim.info().size);
-    let mut k = 0;
-    while k < sim.frames() {
+    for k in frames.step_by(step) {
         sim.render(k, &mut frame);
-        check(&sim, &frame);
-        k += step;
+        check(sim, &frame);
     }
 }
 
@@ -45,7 +89,7 @@ fn camera_of(s: &scene::SceneSpec) -> Camera {
 #[test]
 fn scene_truth_matches_the_camera_model() {
     for spec in scene::scenes() {
-        let sim = SimSource::open(spec.name, "frames=2").unwrap();
+        let sim = shared(spec.name, SHARED);
         let t = sim.scene_truth();
         let cam = camera_of(spec);
         let vp = cam.vertical_vanishing_point();
@@ -123,7 +167,7 @@ fn object_truth_is_consistent_with_the_camera_in_every_scene() {
         let cam = camera_of(spec);
         let (hz, vvp) = (cam.horizon(), cam.vertical_vanishing_point());
         let mut seen = 0;
-        each_frame(spec.name, "seed=3&frames=300", 23, |sim, _| {
+        each_frame(&mut shared(spec.name, SHARED), 0..300, 23, |sim, _| {
             for o in sim.truth() {
                 check_object_geometry(&cam, hz, vvp, o);
                 seen += 1;
@@ -139,7 +183,7 @@ fn rendered_people_span_their_true_pixel_extent() {
     let mut gaps = Vec::new();
     for name in ["plaza", "low", "high", "busy"] {
         let spec = scene::find(name).unwrap();
-        each_frame(name, "seed=5&frames=400", 17, |sim, _| {
+        each_frame(&mut shared(name, SHARED), 0..400, 17, |sim, _| {
             for o in sim.truth().iter().filter(|o| o.kind == Kind::Person) {
                 let [x0, y0, x1, y1] = o.bbox;
                 let inside = x0 > 0
@@ -206,7 +250,7 @@ fn a_person_of_height_h_projects_to_the_expected_extent() {
     }
     // And in the scenes: the truth's extent equals the metrology of the scene camera,
     // i.e. taller people at the same place span proportionally more pixels.
-    each_frame("mid", "seed=2&frames=200", 50, |sim, _| {
+    each_frame(&mut shared("mid", SHARED), 0..200, 50, |sim, _| {
         let cam = sim.scene_truth().camera();
         for o in sim.truth() {
             let f = cam.project([o.ground_m[0], o.ground_m[1], 0.0]).unwrap();
@@ -227,8 +271,7 @@ fn a_person_of_height_h_projects_to_the_expected_extent() {
 
 #[test]
 fn same_seed_gives_the_same_bytes_and_different_seeds_differ() {
-    let hash_clip = |name: &str, query: &str| {
-        let mut sim = SimSource::open(name, query).unwrap();
+    let hash_clip = |sim: &mut SimSource| {
         let mut frame = Frame::new(sim.info().size);
         let mut h = Vec::new();
         while sim.next_frame(&mut frame).unwrap() == Next::Frame {
@@ -236,19 +279,22 @@ fn same_seed_gives_the_same_bytes_and_different_seeds_differ() {
         }
         h
     };
-    let a = hash_clip("plaza", "seed=9&frames=40");
-    let b = hash_clip("plaza", "seed=9&frames=40");
-    let c = hash_clip("plaza", "seed=10&frames=40");
+    let open = |query| SimSource::open("plaza", query).unwrap();
+    let a = hash_clip(&mut open("seed=9&frames=40"));
+    // Frame k does not depend on the frames before it: a second instance
+    // renders frame 33 first (random access), then the clip from the start.
+    let mut second = open("seed=9&frames=40");
+    let mut frame = Frame::new(second.info().size);
+    second.render(33, &mut frame);
+    let random_access_33 = frame_hash(&frame);
+    let b = hash_clip(&mut second);
+    let c = hash_clip(&mut open("seed=10&frames=40"));
     assert_eq!(a.len(), 40);
     assert_eq!(a, b);
     assert!(a.iter().zip(&c).all(|(x, y)| x != y));
     // Consecutive frames differ (people move, noise changes).
     assert!(a.windows(2).all(|w| w[0] != w[1]));
-    // Frame k does not depend on the frames before it: random access gives the same bytes.
-    let mut sim = SimSource::open("plaza", "seed=9&frames=40").unwrap();
-    let mut frame = Frame::new(sim.info().size);
-    sim.render(33, &mut frame);
-    assert_eq!(frame_hash(&frame), a[33]);
+    assert_eq!(random_access_33, a[33]);
 }
 
 #[test]
@@ -301,7 +347,7 @@ fn changed_pixels_lie_inside_the_truth_boxes() {
 #[test]
 fn occlusion_and_the_image_border_lower_the_visible_fraction() {
     let (mut partial, mut full) = (0, 0);
-    each_frame("busy", "seed=1&frames=600", 5, |sim, _| {
+    each_frame(&mut shared("busy", SHARED), 0..400, 3, |sim, _| {
         for o in sim.truth() {
             assert!((0.0..=1.0).contains(&o.visible_fraction));
             if o.visible_fraction < 0.9 {
@@ -327,14 +373,15 @@ fn scenes_cover_the_required_cameras_and_content() {
     // Mid height with shadows and groups.
     let mid = spec("mid");
     assert!(mid.camera_height >= 4.0 && mid.camera_height <= 5.0 && mid.shadows);
-    let sim = SimSource::open("mid", "seed=1").unwrap();
-    let cast = sim.cast();
+    let cast = shared("mid", SHARED).cast();
     assert!(cast.iter().any(|m| m.group != 0 && m.frames_in_view > 0));
     // High and steep, with a car seen.
     let high = spec("high");
     assert!((high.camera_height - 7.0).abs() < 1e-9 && (high.tilt_deg - 35.0).abs() < 1e-9);
     let mut car_seen = false;
-    each_frame("high", "seed=1", 10, |sim, _| {
+    let mut high_sim = shared("high", SHARED);
+    let all = 0..high_sim.frames();
+    each_frame(&mut high_sim, all, 10, |sim, _| {
         car_seen |= sim
             .truth()
             .iter()
@@ -354,7 +401,7 @@ fn scenes_cover_the_required_cameras_and_content() {
 
 #[test]
 fn people_come_and_go_stand_still_and_walk_in_groups() {
-    let sim = SimSource::open("plaza", "seed=1").unwrap();
+    let mut sim = shared("plaza", "seed=1");
     let cast = sim.cast();
     let last = sim.frames() - 1;
     let people: Vec<_> = cast
@@ -371,7 +418,7 @@ fn people_come_and_go_stand_still_and_walk_in_groups() {
         .any(|m| m.kind == Kind::Dog && m.frames_in_view > 0));
     // Someone stands still at some point; group members stay side by side.
     let mut still = false;
-    each_frame("plaza", "seed=1", 5, |sim, _| {
+    each_frame(&mut sim, 0..last + 1, 5, |sim, _| {
         still |= sim
             .truth()
             .iter()
@@ -400,14 +447,26 @@ fn people_come_and_go_stand_still_and_walk_in_groups() {
 
 #[test]
 fn heights_follow_the_population() {
+    // The cast generator itself (what opening a scene draws its cast with),
+    // for four seeds of the busy scene's full clip: the population is a
+    // property of the draw, and drawing needs no ray-traced background.
+    let spec = scene::find("busy").unwrap();
+    let proj = Proj::new(
+        spec.f,
+        spec.tilt_deg,
+        spec.roll_deg,
+        spec.camera_height,
+        spec.width,
+        spec.height,
+    );
+    let duration = spec.frames as f64 / spec.fps as f64;
     let mut hs = Vec::new();
     for seed in 1..=4 {
-        let sim = SimSource::open("busy", &format!("seed={seed}")).unwrap();
         hs.extend(
-            sim.cast()
+            people::cast(spec, &proj, seed, duration)
                 .iter()
-                .filter(|m| m.kind == Kind::Person)
-                .map(|m| m.height_m),
+                .filter(|a| a.kind == Kind::Person)
+                .map(|a| a.height),
         );
     }
     let n = hs.len() as f64;
@@ -475,7 +534,7 @@ const GOLDEN_PLAZA_SEED1: [(u64, u64); 3] = [
 
 #[test]
 fn golden_frames_are_reproduced() {
-    let mut sim = SimSource::open("plaza", "seed=1").unwrap();
+    let mut sim = shared("plaza", "seed=1");
     let mut frame = Frame::new(sim.info().size);
     let got: Vec<(u64, u64)> = GOLDEN_PLAZA_SEED1
         .iter()
