@@ -459,7 +459,12 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
             _ => None,
         })
         .collect();
-    println!("  true points, same  {}", calibrate(&truth, &ccfg, w, h));
+    // True foot points are under the head: no foot offset to undo.
+    let tcfg = CalibrateConfig {
+        foot_offset: 0.0,
+        ..ccfg.clone()
+    };
+    println!("  true points, same  {}", calibrate(&truth, &tcfg, w, h));
     let (_, shx) = stats(&hx);
     let (_, shy) = stats(&hy);
     let (_, sfx) = stats(&fx);
@@ -476,7 +481,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
             (*f, *id, o)
         })
         .collect();
-    println!("  true + live noise  {}", calibrate(&noisy, &ccfg, w, h));
+    println!("  true + live noise  {}", calibrate(&noisy, &tcfg, w, h));
     if std::env::var("KAPPA").is_ok() {
         let tg = stature::calibrate::geometry::ViewGeometry::of_camera(&cam);
         for kappa in [0.0, 0.03, 0.06, 0.09, 0.12] {

@@ -103,6 +103,7 @@ pub fn evaluate(
         people,
         &CalibrateConfig {
             prior_height_m: mean,
+            foot_offset: 0.0,
             ..Default::default()
         },
         w,
@@ -112,6 +113,7 @@ pub fn evaluate(
         people,
         &CalibrateConfig {
             camera_height_m: camera_height,
+            foot_offset: 0.0,
             ..Default::default()
         },
         w,

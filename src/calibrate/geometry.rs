@@ -10,7 +10,9 @@
 //!
 //! Model assumptions (the paper's and METHOD.md's): square pixels, zero
 //! skew, principal point at the image centre, no lens distortion, flat
-//! ground, upright people. Under them the principal point lies on the
+//! ground, upright people whose lowest image point is the edge of their
+//! feet nearest the camera ([`ViewGeometry::foot_offset`] of their height
+//! from the point under the head). Under them the principal point lies on the
 //! perpendicular from the vertical vanishing point `v` to the horizon, so
 //! once `v` is known the horizon has a single unknown, its distance `d`
 //! from the principal point; `f² = d·|v−p|` (eq. 3).
@@ -169,6 +171,10 @@ pub struct ViewGeometry {
     pub v: [f64; 2],
     /// Horizon distance from `p` (on the side away from `v`), pixels.
     pub d: f64,
+    /// How far the observed foot point is from the ground point under the
+    /// head, toward the camera, as a fraction of the person's height (see
+    /// [`ViewGeometry::height_ratio`]); 0 for exact foot points.
+    pub foot_offset: f64,
 }
 
 impl ViewGeometry {
@@ -185,6 +191,7 @@ impl ViewGeometry {
                 norm.p[1] + norm.s * v.y / v.z,
             ],
             d: d * norm.s,
+            foot_offset: 0.0,
         };
         (g.r() > 1e-6 && g.d > 0.0 && g.v[0].is_finite() && g.v[1].is_finite()).then_some(g)
     }
@@ -197,6 +204,7 @@ impl ViewGeometry {
             p: cam.principal,
             v,
             d,
+            foot_offset: 0.0,
         }
     }
 
@@ -253,14 +261,77 @@ impl ViewGeometry {
     /// `h / h_c = 1 − D(head)·|foot − v| / (D(foot)·|head − v|)`, with `D`
     /// the distance below the horizon. The foot must be below the horizon
     /// and the head must not coincide with `v`.
+    ///
+    /// With a [`ViewGeometry::foot_offset`] `κ`, the foot point is first
+    /// moved back to the ground point under the head: a silhouette's lowest
+    /// pixels are the edge of the feet nearest the camera, not the point
+    /// under the crown. On the ground that edge is `κ·h` from the body's
+    /// axis toward the camera's nadir, so the ground line of the shift runs
+    /// through the nadir and its image through `v`: the foot slides along
+    /// the line `foot → v`, away from `v`. The shift depends on the height
+    /// it corrects; three fixed-point steps settle it (each one shrinks the
+    /// change by the factor `κ·∂shift/∂h`, well under 0.1).
     pub fn height_ratio(&self, o: &HeadFoot) -> Option<f64> {
-        let df = self.below_horizon(o.foot);
-        let hv = dist(o.head, self.v);
+        let mut r = self.cross_ratio(o.head, o.foot)?;
+        if self.foot_offset > 0.0 {
+            for _ in 0..3 {
+                let foot = self.foot_under_head(o.foot, self.foot_offset * r.max(0.0))?;
+                r = self.cross_ratio(o.head, foot)?;
+            }
+        }
+        Some(r)
+    }
+
+    fn cross_ratio(&self, head: [f64; 2], foot: [f64; 2]) -> Option<f64> {
+        let df = self.below_horizon(foot);
+        let hv = dist(head, self.v);
         if df <= 1e-9 || hv <= 1e-9 {
             return None;
         }
-        let r = 1.0 - self.below_horizon(o.head) * dist(o.foot, self.v) / (df * hv);
+        let r = 1.0 - self.below_horizon(head) * dist(foot, self.v) / (df * hv);
         r.is_finite().then_some(r)
+    }
+
+    /// The image of the ground point `shift` camera heights farther from
+    /// the camera's nadir than the ground point seen at `foot`.
+    ///
+    /// Camera frame with the roll removed: x along the horizon, y along the
+    /// axis `p → v`, z the optical axis; with tilt `θ` the world's down is
+    /// `D = (0, cos θ, sin θ)` and its forward `F = (0, −sin θ, cos θ)`. The
+    /// ray through image point `(x, y)` (relative to `p`) is `(x, y, f)`; it
+    /// meets the ground (one camera height down) at lateral `x / (ray·D)`,
+    /// forward `(ray·F) / (ray·D)` from the nadir.
+    pub fn foot_under_head(&self, foot: [f64; 2], shift: f64) -> Option<[f64; 2]> {
+        let a = self.axis();
+        let across = [a[1], -a[0]];
+        let (f, t) = (self.focal(), self.tilt());
+        let (st, ct) = (libm::sin(t), libm::cos(t));
+        let q = [foot[0] - self.p[0], foot[1] - self.p[1]];
+        let (x, y) = (
+            q[0] * across[0] + q[1] * across[1],
+            q[0] * a[0] + q[1] * a[1],
+        );
+        let down = y * ct + f * st;
+        if down <= 1e-9 {
+            return None; // at or above the horizon
+        }
+        let g = [x / down, (f * ct - y * st) / down];
+        let rho = (g[0] * g[0] + g[1] * g[1]).sqrt();
+        if rho <= 1e-9 {
+            return Some(foot); // under the camera: no direction to move in
+        }
+        let k = 1.0 + shift / rho;
+        let g = [g[0] * k, g[1] * k];
+        // The ground point g·h_c in the camera frame: lateral, then F and D.
+        let (px, py, pz) = (g[0], ct - g[1] * st, st + g[1] * ct);
+        if pz <= 1e-9 {
+            return None;
+        }
+        let (x, y) = (f * px / pz, f * py / pz);
+        Some([
+            self.p[0] + x * across[0] + y * a[0],
+            self.p[1] + x * across[1] + y * a[1],
+        ])
     }
 
     /// The image of the point `ratio·h_c` straight above `foot` (METHOD.md
@@ -304,6 +375,35 @@ mod tests {
             for k in 0..3 {
                 assert!((h[k] - gh[k]).abs() < 1e-6, "{h:?} {gh:?}");
             }
+        }
+    }
+
+    #[test]
+    fn foot_offset_undoes_a_foot_seen_nearer_the_camera() {
+        let cam = Camera::centred(700.0, 30.0, -4.0, 6.0, 640, 480);
+        let exact = ViewGeometry::of_camera(&cam);
+        let g = ViewGeometry {
+            foot_offset: 0.08,
+            ..exact
+        };
+        for (x, y, h) in [(0.5, 7.0, 1.75), (-4.0, 12.0, 1.6), (3.0, 20.0, 1.9)] {
+            let head = cam.project([x, y, h]).unwrap();
+            let true_foot = cam.project([x, y, 0.0]).unwrap();
+            // The edge of the feet 0.08·h nearer the nadir (the origin).
+            let rho = (x * x + y * y).sqrt();
+            let k = 1.0 - 0.08 * h / rho;
+            let seen = cam.project([x * k, y * k, 0.0]).unwrap();
+            assert!(
+                seen[1] > true_foot[1] + 1.0,
+                "the near edge is lower in the image"
+            );
+            let back = g.foot_under_head(seen, 0.08 * h / cam.height).unwrap();
+            assert!(dist(back, true_foot) < 1e-6, "{back:?} {true_foot:?}");
+            let r = g.height_ratio(&HeadFoot { head, foot: seen }).unwrap();
+            assert!((r * cam.height - h).abs() < 1e-3, "{}", r * cam.height);
+            // Uncorrected, the same points read tall.
+            let raw = exact.height_ratio(&HeadFoot { head, foot: seen }).unwrap();
+            assert!(raw * cam.height > h + 0.02, "{}", raw * cam.height);
         }
     }
 

@@ -55,6 +55,10 @@ pub struct CalibrateConfig {
     /// Fit the walking lean with the vertical vanishing point
     /// ([`vertical`]); `false` takes every head–foot line as vertical.
     pub lean: bool,
+    /// Distance of the feet's edge nearest the camera from the body's axis,
+    /// as a fraction of the person's height ([`ViewGeometry::foot_offset`]):
+    /// half a foot length is about 0.075 of the stature.
+    pub foot_offset: f64,
     /// Random line pairs tried for the vanishing point's starting point.
     pub ransac_iterations: usize,
     /// A track adds an anchor after its foot moved this far, pixels.
@@ -87,6 +91,7 @@ impl Default for CalibrateConfig {
             camera_height_m: 0.0,
             reference_height_m: 0.0,
             lean: true,
+            foot_offset: 0.08,
             ransac_iterations: 300,
             anchor_step_px: 6.0,
             anchors_per_track: 32,
@@ -116,6 +121,7 @@ impl CalibrateConfig {
             self.reference_height_m,
             0.0..=2.5,
         )?;
+        check_range("calibrate.foot_offset", self.foot_offset, 0.0..=0.3)?;
         check_range(
             "calibrate.ransac_iterations",
             self.ransac_iterations,
@@ -581,10 +587,12 @@ impl Calibrator {
         };
         // The horizon needs a finite vanishing point (a level camera has
         // none: NearLevel, and no estimate).
-        let Some(g0) = ViewGeometry::from_normalised(&vfit.vertical.homogeneous(), 1.0, &self.norm)
+        let Some(mut g0) =
+            ViewGeometry::from_normalised(&vfit.vertical.homogeneous(), 1.0, &self.norm)
         else {
             return;
         };
+        g0.foot_offset = self.cfg.foot_offset;
         let Some(hfit) = horizon::fit_horizon(
             &self.flat,
             &self.flat_slot,

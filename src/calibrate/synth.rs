@@ -1,8 +1,10 @@
 //! Synthetic head/foot observations of people walking in front of a known
 //! camera, for tests and benchmarks of calibration and heights (never used
 //! by the vision loop). People walk straight lines at 1.0–1.6 m/s, their
-//! head bobs by up to 2 cm with the gait, and image points get Gaussian
-//! pixel noise.
+//! head bobs by up to 2 cm with the gait, the foot point is the edge of
+//! the feet nearest the camera (as a silhouette's lowest pixels are; see
+//! [`super::geometry::ViewGeometry::foot_offset`]), and image points get
+//! Gaussian pixel noise.
 
 use super::geometry::HeadFoot;
 use crate::camera::Camera;
@@ -38,6 +40,10 @@ pub struct SynthScene {
     pub noise_px: f64,
     /// Frames per second.
     pub fps: f64,
+    /// Ground distance of the foot point from the point under the head,
+    /// toward the camera's nadir, as a fraction of the person's height
+    /// (the calibrator's default `foot_offset`; 0 puts it under the head).
+    pub foot_offset: f64,
 }
 
 impl Default for SynthScene {
@@ -50,6 +56,7 @@ impl Default for SynthScene {
             height_sd: 0.08,
             noise_px: 0.7,
             fps: 10.0,
+            foot_offset: 0.08,
         }
     }
 }
@@ -99,8 +106,10 @@ pub fn walk(cam: &Camera, scene: &SynthScene, rng: &mut Rng) -> Vec<SynthObs> {
         let phase0 = rng.uniform() * 6.0;
         for k in 0..(scene.fps as u64 * 30) {
             let bob = 0.02 * (libm::sin(phase0 + k as f64 * 2.0 * 3.5 / scene.fps).abs() - 1.0);
+            let rho = (pos[0] * pos[0] + pos[1] * pos[1]).sqrt();
+            let near = (1.0 - scene.foot_offset * height / rho.max(1e-9)).max(0.0);
             let (Some(foot), Some(head)) = (
-                cam.project([pos[0], pos[1], 0.0]),
+                cam.project([pos[0] * near, pos[1] * near, 0.0]),
                 cam.project([pos[0], pos[1], height + bob]),
             ) else {
                 break;
