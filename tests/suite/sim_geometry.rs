@@ -451,14 +451,7 @@ fn heights_follow_the_population() {
     // for four seeds of the busy scene's full clip: the population is a
     // property of the draw, and drawing needs no ray-traced background.
     let spec = scene::find("busy").unwrap();
-    let proj = Proj::new(
-        spec.f,
-        spec.tilt_deg,
-        spec.roll_deg,
-        spec.camera_height,
-        spec.width,
-        spec.height,
-    );
+    let proj = spec.projection();
     let duration = spec.frames as f64 / spec.fps as f64;
     let mut hs = Vec::new();
     for seed in 1..=4 {

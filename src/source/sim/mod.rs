@@ -155,14 +155,7 @@ impl SimSource {
             spec.noise = n;
         }
         let frames = opts.frames.unwrap_or(spec.frames).clamp(1, MAX_FRAMES);
-        let proj = Proj::new(
-            spec.f,
-            spec.tilt_deg,
-            spec.roll_deg,
-            spec.camera_height,
-            spec.width,
-            spec.height,
-        );
+        let proj = spec.projection();
         // The seed picks the cast and textures; the scene name keeps scenes apart for the same seed.
         let seed = math::mix64(opts.seed) ^ name_hash(spec.name);
         let duration = frames as f64 / spec.fps as f64;

@@ -97,6 +97,20 @@ pub struct SceneSpec {
 }
 
 /// Every built-in scene; the first is the demo default.
+impl SceneSpec {
+    /// The scene's camera as the renderer projects with it.
+    pub fn projection(&self) -> super::math::Proj {
+        super::math::Proj::new(
+            self.f,
+            self.tilt_deg,
+            self.roll_deg,
+            self.camera_height,
+            self.width,
+            self.height,
+        )
+    }
+}
+
 pub fn scenes() -> &'static [SceneSpec] {
     &SCENES
 }
