@@ -180,7 +180,9 @@ fn mul_dither(a: u16, b: u16, dither: u16) -> u16 {
 /// `1/w` in Q2.14 for a weight `w` in Q0.16 with `w > 32768` (w > ½):
 /// the chord `3 − 2w` then one Newton step `r(2 − w r)`. Relative error
 /// ≤ 1.6 % (the chord's 12.5 % squared) plus ≤ 2⁻¹³ rounding; all
-/// products are 16×16 bits.
+/// products are 16×16 bits. Other `w` give a meaningless value (the
+/// shifts drop bits), never a panic: the fast path computes it on every
+/// lane and discards those.
 #[inline(always)]
 pub fn recip_q14(w: u16) -> u16 {
     // r0 ≈ 3 − 2w in Q2.14 (3 = 49152, 2w = w/2), one unit low so that
@@ -366,84 +368,92 @@ pub fn slow_pixel<const K: usize>(
     class
 }
 
-/// Fast path on one 64-pixel chunk of one row: every pixel whose heaviest
-/// mode matches and whose updated weight is above ½ is updated here
-/// (identically to [`slow_pixel`]); returns a bit per pixel left for the
-/// slow path (whose state is untouched).
+/// Fast path on one 64-pixel chunk of one row, in place on the model rows:
+/// every pixel whose heaviest mode matches and whose updated weight is above
+/// ½ is updated here (identically to [`slow_pixel`]); returns a bit per
+/// pixel left for the slow path (whose state is untouched). `wrow` is the
+/// row's weights (mode `k` at `k·wd..`), the chunk starts at column `x0`.
 ///
-/// Written for the auto-vectoriser: 16-bit values only in the main loop
-/// (products as `mulhi`/`wrapping_mul` pairs: `pmulhuw`/`pmullw` on SSE2),
-/// selects as masks.
+/// Written for the auto-vectoriser: 16-bit lanes only (products as
+/// `mulhi`/`wrapping_mul` pairs: `pmulhuw`/`pmullw` on SSE2, `umull` on
+/// NEON), compares on values below 2¹⁵ done as `i16` (one `pcmpgtw`, no
+/// sign-flip), signs applied as `(d ^ s) − s`, selects as masks. Lanes
+/// that fail the test compute garbage (wrapping, never a panic) that is
+/// discarded.
 #[inline(always)]
 fn fast_chunk<const K: usize>(
-    x: &[u8],
-    w: &mut [[u16; CHUNK]; K],
-    mu0: &mut [u8],
-    var0: &mut [u8],
-    dither: &[u16],
+    x: &[u8; CHUNK],
+    wrow: &mut [u16],
+    wd: usize,
+    x0: usize,
+    mu0: &mut [u8; CHUNK],
+    var0: &mut [u8; CHUNK],
+    dither: &[u16; CHUNK],
     p: &Params,
     r: &Rates,
 ) -> u64 {
-    let (x, mu0, var0, dither) = (
-        &x[..CHUNK],
-        &mut mu0[..CHUNK],
-        &mut var0[..CHUNK],
-        &dither[..CHUNK],
-    );
-    let mut xs = [0u16; CHUNK];
-    let mut ms = [0u16; CHUNK];
-    let mut vs = [0u16; CHUNK];
-    for i in 0..CHUNK {
-        xs[i] = u16::from(x[i]);
-        ms[i] = u16::from(mu0[i]);
-        vs[i] = u16::from(var0[i]);
-    }
     let mut good = [0u16; CHUNK];
-    let (a, act, a_net) = (r.a, r.act, r.a - r.act);
+    let mut ok = [0u8; CHUNK];
+    let (act, a_net) = (r.act, r.a - r.act);
     // `α` as a lane array the optimiser cannot see through: multiplying by
     // a known splat makes LLVM widen to 32-bit lanes (pmuludq) instead of
     // using pmulhuw.
-    let av = core::hint::black_box([a; CHUNK]);
-    let (tg, vlo, vhi) = (p.tg_sig_q8, u16::from(p.var_min), u16::from(p.var_max));
-    {
-        let w0 = &mut w[0];
-        for i in 0..CHUNK {
-            let (xi, m, v, wo, dith) = (xs[i], ms[i], vs[i], w0[i], dither[i]);
-            let up = xi >= m;
-            let ad = if up { xi - m } else { m - xi };
-            let adc = ad.min(63);
-            let d2 = 2 * adc * adc;
-            let thr = mulhi(v << 8, tg);
-            let wn = (wo - mulhi(wo, av[i])).saturating_add(a_net);
-            let g = (d2 < thr) & (wo != 0) & (wn > 32768);
-            let rho = mulhi(av[i], recip_q14(wn.max(32769))).min(16383) << 2;
-            let dm = mul_dither(rho, ad, dith);
-            let m2 = if up { m + dm } else { m - dm };
-            let vup = d2 >= v;
-            let e = if vup { d2 - v } else { v - d2 };
-            let dv = mul_dither(rho, e, !dith);
-            let v2 = if vup { v + dv } else { v - dv }.max(vlo).min(vhi);
-            let gm = 0u16.wrapping_sub(u16::from(g));
-            w0[i] = (wn & gm) | (wo & !gm);
-            ms[i] = (m2 & gm) | (m & !gm);
-            vs[i] = (v2 & gm) | (v & !gm);
-            good[i] = gm;
-        }
+    let av = core::hint::black_box([r.a; CHUNK]);
+    let tg = p.tg_sig_q8;
+    let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
+    let w0 = chunk_mut(wrow, x0);
+    for i in 0..CHUNK {
+        let (m, v, wo, dith) = (i16::from(mu0[i]), i16::from(var0[i]), w0[i], dither[i]);
+        // |x − μ| ≤ 255 and its sign s (0 or −1).
+        let diff = i16::from(x[i]) - m;
+        let s = diff >> 15;
+        let ad = (diff ^ s) - s;
+        let adc = ad.min(63);
+        let d2 = 2 * adc * adc; // < 8192
+        let thr = mulhi((v as u16) << 8, tg) as i16; // ≤ 6375
+        let wn = (wo - mulhi(wo, av[i])).saturating_add(a_net);
+        // wn > 32768 as a signed compare of wn − 2¹⁵.
+        let g = (d2 < thr) & (wo != 0) & ((wn ^ 0x8000) as i16 > 0);
+        let rho = mulhi(av[i], recip_q14(wn)).min(16383) << 2;
+        let dm = mul_dither(rho, ad as u16, dith) as i16; // ≤ |x − μ|
+        let m2 = m + ((dm ^ s) - s);
+        let vd = d2 - v;
+        let vs = vd >> 15;
+        let dv = mul_dither(rho, ((vd ^ vs) - vs) as u16, !dith) as i16;
+        let v2 = (v + ((dv ^ vs) - vs)).max(vlo).min(vhi);
+        let gm = -i16::from(g);
+        w0[i] = if g { wn } else { wo };
+        mu0[i] = ((m2 & gm) | (m & !gm)) as u8;
+        var0[i] = ((v2 & gm) | (v & !gm)) as u8;
+        good[i] = gm as u16;
+        ok[i] = u8::from(g);
     }
-    for wk in w.iter_mut().skip(1) {
+    for k in 1..K {
+        let wk = chunk_mut(wrow, k * wd + x0);
         for i in 0..CHUNK {
             let wo = wk[i];
-            let gm = good[i];
-            wk[i] = (decay(wo, av[i], act) & gm) | (wo & !gm);
+            wk[i] = if good[i] != 0 {
+                decay(wo, av[i], act)
+            } else {
+                wo
+            };
         }
     }
-    let mut ok = [0u8; CHUNK];
-    for i in 0..CHUNK {
-        mu0[i] = ms[i] as u8;
-        var0[i] = vs[i] as u8;
-        ok[i] = (good[i] & 1) as u8;
-    }
     !pack_flags(&ok)
+}
+
+/// The `CHUNK` values of `s` from `at` (callers keep `at + CHUNK ≤ len`).
+#[inline(always)]
+fn chunk<T>(s: &[T], at: usize) -> &[T; CHUNK] {
+    s[at..at + CHUNK].try_into().expect("chunk inside the row")
+}
+
+/// Mutable [`chunk`].
+#[inline(always)]
+fn chunk_mut<T>(s: &mut [T], at: usize) -> &mut [T; CHUNK] {
+    (&mut s[at..at + CHUNK])
+        .try_into()
+        .expect("chunk inside the row")
 }
 
 /// Packs up to 64 bytes of 0/1 (a multiple of 8) into bits, byte `i` to bit
@@ -643,23 +653,17 @@ impl Background {
                 let x0 = c * CHUNK;
                 let x1 = (x0 + CHUNK).min(wd);
                 let mut todo = if c < full {
-                    let mut wk = [[0u16; CHUNK]; K];
-                    for (k, wk) in wk.iter_mut().enumerate() {
-                        wk.copy_from_slice(&wrow[k * wd + x0..k * wd + x1]);
-                    }
-                    let hard = fast_chunk::<K>(
-                        &xrow[x0..x1],
-                        &mut wk,
-                        &mut murow[x0..x1],
-                        &mut varrow[x0..x1],
-                        &drow[x0..x1],
+                    fast_chunk::<K>(
+                        chunk(xrow, x0),
+                        wrow,
+                        wd,
+                        x0,
+                        chunk_mut(murow, x0),
+                        chunk_mut(varrow, x0),
+                        chunk(drow, x0),
                         &p,
                         r,
-                    );
-                    for (k, wk) in wk.iter().enumerate() {
-                        wrow[k * wd + x0..k * wd + x1].copy_from_slice(wk);
-                    }
-                    hard
+                    )
                 } else if x1 - x0 == CHUNK {
                     u64::MAX
                 } else {
