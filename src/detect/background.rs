@@ -107,6 +107,8 @@ pub struct Params {
     pub shadow_hi_q8: u32,
     /// Start-up schedule on.
     pub fast_startup: bool,
+    /// Mean and variance update interval `N` in frames (1 = every frame).
+    pub update_interval: u32,
 }
 
 impl Params {
@@ -129,8 +131,20 @@ impl Params {
             shadow_lo_q8: q(c.shadow_min_ratio, 256.0, 256.0) as u32,
             shadow_hi_q8: q(c.shadow_max_ratio, 256.0, 256.0) as u32,
             fast_startup: c.fast_startup,
+            update_interval: c.update_interval.clamp(1, MAX_UPDATE_INTERVAL),
         }
     }
+}
+
+/// Longest mean and variance update interval accepted.
+pub const MAX_UPDATE_INTERVAL: u32 = 8;
+
+/// Whether the 64-pixel chunk `c` of row `y` updates its means and
+/// variances in frame `frame` (staggered so that every frame updates
+/// `1/N` of the chunks).
+#[inline(always)]
+pub fn updates_chunk(interval: u32, frame: u32, y: usize, c: usize) -> bool {
+    interval <= 1 || (frame as usize).wrapping_add(y).wrapping_add(c) % interval as usize == 0
 }
 
 /// Learning rates of one frame, Q0.16.
@@ -144,6 +158,13 @@ pub struct Rates {
     pub a_fg: u16,
     /// `α c_T` for foreground pixels (`≤ a_fg`).
     pub act_fg: u16,
+    /// Frames between mean and variance updates this frame: the config's
+    /// `N` once `α ≤ 1/(16 N)`, 1 before (start-up).
+    pub interval: u32,
+    /// `N α`, the rate of the mean and variance update (`ρ = N α / w`).
+    pub ua: u16,
+    /// `N α` for foreground pixels.
+    pub ua_fg: u16,
 }
 
 impl Rates {
@@ -153,11 +174,20 @@ impl Rates {
         let a = ((65536 + frames / 2) / frames.max(1)).min(65535);
         let a_fg = ((a * p.fg_rate_q16 + 32768) >> 16).min(65535);
         let ct = |a: u32| ((a * p.ct_q16 + 32768) >> 16).min(a);
+        let n = if frames >= 16 * p.update_interval {
+            p.update_interval
+        } else {
+            1
+        };
         Rates {
             a: a as u16,
             act: ct(a) as u16,
             a_fg: a_fg as u16,
             act_fg: ct(a_fg) as u16,
+            interval: n,
+            // N α ≤ 1/16 (+ rounding) when N > 1: fits Q0.16, ρ ≤ 2 N α ≤ 1/8.
+            ua: (a * n).min(65535) as u16,
+            ua_fg: (a_fg * n).min(65535) as u16,
         }
     }
 }
@@ -262,7 +292,9 @@ pub enum Class {
 }
 
 /// The full per-pixel update (any case). `w`, `mu`, `var` are the pixel's
-/// `K` modes; returns the pixel's class.
+/// `K` modes; `update`: this frame moves the matched mode's mean and
+/// variance ([`updates_chunk`]); returns the pixel's class.
+#[allow(clippy::too_many_arguments)]
 pub fn slow_pixel<const K: usize>(
     x: u8,
     w: &mut [u16; K],
@@ -271,6 +303,7 @@ pub fn slow_pixel<const K: usize>(
     p: &Params,
     r: &Rates,
     dither: u16,
+    update: bool,
 ) -> Class {
     let n = w.iter().take_while(|&&v| v > 0).count();
     if n == 0 {
@@ -316,20 +349,22 @@ pub fn slow_pixel<const K: usize>(
             cum += u64::from(w[k]);
         }
     }
-    let (a, act) = if class == Class::Foreground {
-        (r.a_fg, r.act_fg)
+    let (a, act, ua) = if class == Class::Foreground {
+        (r.a_fg, r.act_fg, r.ua_fg)
     } else {
-        (r.a, r.act)
+        (r.a, r.act, r.ua)
     };
     for k in 0..n {
         if Some(k) == matched {
             let wn = grow(w[k], a, act);
             w[k] = wn;
-            let rho = rho_q16(a, wn);
-            let ad = u16::from(mu[k].abs_diff(x));
-            let d2 = 2 * ad * ad; // matched: ad ≤ 56, d2 < 6375
-            mu[k] = step_mean(mu[k], x, rho, dither);
-            var[k] = step_var(var[k], d2, rho, !dither, p.var_min, p.var_max);
+            if update {
+                let rho = rho_q16(ua, wn);
+                let ad = u16::from(mu[k].abs_diff(x));
+                let d2 = 2 * ad * ad; // matched: ad ≤ 56, d2 < 6375
+                mu[k] = step_mean(mu[k], x, rho, dither);
+                var[k] = step_var(var[k], d2, rho, !dither, p.var_min, p.var_max);
+            }
         } else {
             w[k] = decay(w[k], a, act);
         }
@@ -373,6 +408,8 @@ pub fn slow_pixel<const K: usize>(
 /// ½ is updated here (identically to [`slow_pixel`]); returns a bit per
 /// pixel left for the slow path (whose state is untouched). `wrow` is the
 /// row's weights (mode `k` at `k·wd..`), the chunk starts at column `x0`.
+/// `UPDATE`: the chunk's means and variances move this frame
+/// ([`updates_chunk`]); without, only weights change (a third of the work).
 ///
 /// Written for the auto-vectoriser: 16-bit lanes only (products as
 /// `mulhi`/`wrapping_mul` pairs: `pmulhuw`/`pmullw` on SSE2, `umull` on
@@ -381,7 +418,8 @@ pub fn slow_pixel<const K: usize>(
 /// that fail the test compute garbage (wrapping, never a panic) that is
 /// discarded.
 #[inline(always)]
-fn fast_chunk<const K: usize>(
+#[allow(clippy::too_many_arguments)]
+fn fast_chunk<const K: usize, const UPDATE: bool>(
     x: &[u8; CHUNK],
     wrow: &mut [u16],
     wd: usize,
@@ -391,15 +429,12 @@ fn fast_chunk<const K: usize>(
     dither: &[u16; CHUNK],
     p: &Params,
     r: &Rates,
+    lanes: &Lanes,
 ) -> u64 {
     let mut good = [0u16; CHUNK];
     let mut ok = [0u8; CHUNK];
     let (act, a_net) = (r.act, r.a - r.act);
-    // `α` as a lane array the optimiser cannot see through: multiplying by
-    // a known splat makes LLVM widen to 32-bit lanes (pmuludq) instead of
-    // using pmulhuw.
-    let av = core::hint::black_box([r.a; CHUNK]);
-    let tg = p.tg_sig_q8;
+    let (av, uav, tgv) = (&lanes.a, &lanes.ua, &lanes.tg);
     let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
     let w0 = chunk_mut(wrow, x0);
     for i in 0..CHUNK {
@@ -410,11 +445,17 @@ fn fast_chunk<const K: usize>(
         let ad = (diff ^ s) - s;
         let adc = ad.min(63);
         let d2 = 2 * adc * adc; // < 8192
-        let thr = mulhi((v as u16) << 8, tg) as i16; // ≤ 6375
+        let thr = mulhi((v as u16) << 8, tgv[i]) as i16; // ≤ 6375
         let wn = (wo - mulhi(wo, av[i])).saturating_add(a_net);
         // wn > 32768 as a signed compare of wn − 2¹⁵.
         let g = (d2 < thr) & (wo != 0) & ((wn ^ 0x8000) as i16 > 0);
-        let rho = mulhi(av[i], recip_q14(wn)).min(16383) << 2;
+        w0[i] = if g { wn } else { wo };
+        good[i] = (-i16::from(g)) as u16;
+        ok[i] = u8::from(g);
+        if !UPDATE {
+            continue;
+        }
+        let rho = mulhi(uav[i], recip_q14(wn)).min(16383) << 2;
         let dm = mul_dither(rho, ad as u16, dith) as i16; // ≤ |x − μ|
         let m2 = m + ((dm ^ s) - s);
         let vd = d2 - v;
@@ -422,11 +463,8 @@ fn fast_chunk<const K: usize>(
         let dv = mul_dither(rho, ((vd ^ vs) - vs) as u16, !dith) as i16;
         let v2 = (v + ((dv ^ vs) - vs)).max(vlo).min(vhi);
         let gm = -i16::from(g);
-        w0[i] = if g { wn } else { wo };
         mu0[i] = ((m2 & gm) | (m & !gm)) as u8;
         var0[i] = ((v2 & gm) | (v & !gm)) as u8;
-        good[i] = gm as u16;
-        ok[i] = u8::from(g);
     }
     for k in 1..K {
         let wk = chunk_mut(wrow, k * wd + x0);
@@ -440,6 +478,16 @@ fn fast_chunk<const K: usize>(
         }
     }
     !pack_flags(&ok)
+}
+
+/// Per-frame factors of the fast path as lane arrays the optimiser cannot
+/// see through (made once per frame behind `black_box`): multiplying by a
+/// known splat makes LLVM widen to 32-bit lanes (`pmuludq`) instead of
+/// using `pmulhuw`.
+struct Lanes {
+    a: [u16; CHUNK],
+    ua: [u16; CHUNK],
+    tg: [u16; CHUNK],
 }
 
 /// The `CHUNK` values of `s` from `at` (callers keep `at + CHUNK ≤ len`).
@@ -638,6 +686,11 @@ impl Background {
         let mut fg_count = 0u32;
         let mut shadow = 0u32;
         let frame_off = (self.frame as usize).wrapping_mul(2_654_435_761) % DITHER_PERIOD;
+        let lanes = core::hint::black_box(Lanes {
+            a: [r.a; CHUNK],
+            ua: [r.ua; CHUNK],
+            tg: [p.tg_sig_q8; CHUNK],
+        });
         for y in 0..ht {
             let xrow = &frame.y[y * wd..(y + 1) * wd];
             let base = y * K * wd;
@@ -652,18 +705,19 @@ impl Background {
             for (c, (mword, sword)) in mrow.iter_mut().zip(srow.iter_mut()).enumerate() {
                 let x0 = c * CHUNK;
                 let x1 = (x0 + CHUNK).min(wd);
+                let update = updates_chunk(r.interval, self.frame, y, c);
                 let mut todo = if c < full {
-                    fast_chunk::<K>(
+                    let (xs, ms, vs, ds) = (
                         chunk(xrow, x0),
-                        wrow,
-                        wd,
-                        x0,
                         chunk_mut(murow, x0),
                         chunk_mut(varrow, x0),
                         chunk(drow, x0),
-                        &p,
-                        r,
-                    )
+                    );
+                    if update {
+                        fast_chunk::<K, true>(xs, wrow, wd, x0, ms, vs, ds, &p, r, &lanes)
+                    } else {
+                        fast_chunk::<K, false>(xs, wrow, wd, x0, ms, vs, ds, &p, r, &lanes)
+                    }
                 } else if x1 - x0 == CHUNK {
                     u64::MAX
                 } else {
@@ -683,7 +737,8 @@ impl Background {
                         mu[k] = murow[k * wd + x];
                         var[k] = varrow[k * wd + x];
                     }
-                    let class = slow_pixel::<K>(xrow[x], &mut w, &mut mu, &mut var, &p, r, drow[x]);
+                    let class =
+                        slow_pixel::<K>(xrow[x], &mut w, &mut mu, &mut var, &p, r, drow[x], update);
                     for k in 0..K {
                         wrow[k * wd + x] = w[k];
                         murow[k * wd + x] = mu[k];
