@@ -1,7 +1,7 @@
 //! Fixed-point Zivkovic adaptive Gaussian mixture background model (the
 //! algorithm behind OpenCV's MOG2), on the luma plane.
 //!
-//! # The model (what the float reference in `tests/common/gmm_ref.rs` also does)
+//! # The model (what the float reference in `tests/detect_support/mod.rs` also does)
 //!
 //! Every pixel holds up to `K ≤ 4` modes `(w, μ, σ²)`, sorted by weight,
 //! heaviest first; a weight of 0 marks an empty slot (empty slots always form
@@ -21,6 +21,14 @@
 //!    moves its mean and variance by `ρ = α / w` (post-update weight):
 //!    `μ ← μ + ρ (x−μ)`, `σ² ← σ² + ρ ((x−μ)² − σ²)`, clamped to
 //!    `[σ²_min, σ²_max]`.
+//!
+//!    *Update interval* `N` (`update_interval`, default 4): once
+//!    `α ≤ 1/(16 N)`, the mean and variance move only every `N`-th frame,
+//!    by `ρ = N α / w` — the same expected drift per frame, a quarter of
+//!    the work. Which frames: those where `frame + y + ⌊x/64⌋` is a
+//!    multiple of `N` (64-pixel blocks, staggered). Weights, matching and
+//!    the mask are still updated every frame. Measured neutral for the
+//!    masks and recall (`bench/RESULTS.md`, "Detection", "Speed").
 //! 5. No match: a new mode `(α, x, σ²_init)` takes the first empty slot, or
 //!    replaces the lightest mode; the changed mode is moved up to keep the
 //!    order. A pixel without any mode is background and gets one.
@@ -55,7 +63,8 @@
 //! Every intermediate fits its type: `|x−μ| ≤ 255`; in the matched case
 //! `2(x−μ)² < T_g σ² ≤ 25 · 255 = 6375` so the variance error `e ≤ 7938`
 //! after the lane clamp of `|x−μ|` to 63 (which never binds for a match);
-//! `ρ·e < 2¹⁶ · 2¹³ = 2²⁹`; weight sums `S ≤ 4 · 65535 < 2¹⁸`, compared in
+//! `ρ·e < 2¹⁶ · 2¹³ = 2²⁹`; `N α ≤ 1/16` (+ rounding) once the interval
+//! applies, so `N α` fits Q0.16; weight sums `S ≤ 4 · 65535 < 2¹⁸`, compared in
 //! `u64` against `T_B · S < 2³⁴`.
 //!
 //! # Speed
@@ -63,9 +72,11 @@
 //! Most pixels match their heaviest mode. A branch-free pass over 64-pixel
 //! chunks (16-bit lanes, auto-vectorised) handles exactly those pixels when
 //! the updated weight is above ½ (where `1/w` is computed by one Newton
-//! step, see [`recip_q14`]); the rest (foreground, new or multi-modal
-//! pixels) go through the scalar [`slow_pixel`]. Both paths give identical
-//! results (a test runs the scalar path everywhere and compares).
+//! step, see [`recip_q14`]), in place on the model rows; chunks off their
+//! update phase take a weights-only variant (about a third of the work).
+//! The rest (foreground, new or multi-modal pixels) go through the scalar
+//! [`slow_pixel`]. Both paths give identical results (a test runs the
+//! scalar path everywhere and compares).
 
 use super::DetectConfig;
 use crate::frame::Frame;

@@ -22,6 +22,10 @@
 //!   the default `foreground_rate = 0.25` after 155 frames (15 s at 10 fps;
 //!   at the steady α = 1/500 about 5/3 of both). The price: a ghost left by
 //!   a background object that moves away also takes that long to heal.
+//! * `update_interval = 4`: in steady state a pixel's mean and variance
+//!   move every 4th frame at 4 times the rate (weights and masks every
+//!   frame): measured neutral for recall and fixed-vs-float agreement, and
+//!   ≈ 6 fewer instructions per pixel.
 //! * Shadows: a foreground pixel 0.65–0.95 times as bright as a background
 //!   mode is a shadow candidate (luma; OpenCV's 0.5 erased grey clothing on
 //!   PETS). A pixel whose chroma differs from the [`chroma`] background by
