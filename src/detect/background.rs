@@ -1,7 +1,7 @@
 //! Fixed-point Zivkovic adaptive Gaussian mixture background model (the
 //! algorithm behind OpenCV's MOG2), on the luma plane.
 //!
-//! # The model (what the float reference in `tests/common/gmm_ref.rs` also does)
+//! # The model (what the float reference in `tests/detect_support/mod.rs` also does)
 //!
 //! Every pixel holds up to `K ≤ 4` modes `(w, μ, σ²)`, sorted by weight,
 //! heaviest first; a weight of 0 marks an empty slot (empty slots always form
@@ -21,6 +21,14 @@
 //!    moves its mean and variance by `ρ = α / w` (post-update weight):
 //!    `μ ← μ + ρ (x−μ)`, `σ² ← σ² + ρ ((x−μ)² − σ²)`, clamped to
 //!    `[σ²_min, σ²_max]`.
+//!
+//!    *Update interval* `N` (`update_interval`, default 4): once
+//!    `α ≤ 1/(16 N)`, the mean and variance move only every `N`-th frame,
+//!    by `ρ = N α / w` — the same expected drift per frame, a quarter of
+//!    the work. Which frames: those where `frame + y + ⌊x/64⌋` is a
+//!    multiple of `N` (64-pixel blocks, staggered). Weights, matching and
+//!    the mask are still updated every frame. Measured neutral for the
+//!    masks and recall (`bench/RESULTS.md`, "Detection", "Speed").
 //! 5. No match: a new mode `(α, x, σ²_init)` takes the first empty slot, or
 //!    replaces the lightest mode; the changed mode is moved up to keep the
 //!    order. A pixel without any mode is background and gets one.
@@ -55,7 +63,8 @@
 //! Every intermediate fits its type: `|x−μ| ≤ 255`; in the matched case
 //! `2(x−μ)² < T_g σ² ≤ 25 · 255 = 6375` so the variance error `e ≤ 7938`
 //! after the lane clamp of `|x−μ|` to 63 (which never binds for a match);
-//! `ρ·e < 2¹⁶ · 2¹³ = 2²⁹`; weight sums `S ≤ 4 · 65535 < 2¹⁸`, compared in
+//! `ρ·e < 2¹⁶ · 2¹³ = 2²⁹`; `N α ≤ 1/16` (+ rounding) once the interval
+//! applies, so `N α` fits Q0.16; weight sums `S ≤ 4 · 65535 < 2¹⁸`, compared in
 //! `u64` against `T_B · S < 2³⁴`.
 //!
 //! # Speed
@@ -63,9 +72,11 @@
 //! Most pixels match their heaviest mode. A branch-free pass over 64-pixel
 //! chunks (16-bit lanes, auto-vectorised) handles exactly those pixels when
 //! the updated weight is above ½ (where `1/w` is computed by one Newton
-//! step, see [`recip_q14`]); the rest (foreground, new or multi-modal
-//! pixels) go through the scalar [`slow_pixel`]. Both paths give identical
-//! results (a test runs the scalar path everywhere and compares).
+//! step, see [`recip_q14`]), in place on the model rows; chunks off their
+//! update phase take a weights-only variant (about a third of the work).
+//! The rest (foreground, new or multi-modal pixels) go through the scalar
+//! [`slow_pixel`]. Both paths give identical results (a test runs the
+//! scalar path everywhere and compares).
 
 use super::DetectConfig;
 use crate::frame::Frame;
@@ -107,6 +118,8 @@ pub struct Params {
     pub shadow_hi_q8: u32,
     /// Start-up schedule on.
     pub fast_startup: bool,
+    /// Mean and variance update interval `N` in frames (1 = every frame).
+    pub update_interval: u32,
 }
 
 impl Params {
@@ -129,8 +142,20 @@ impl Params {
             shadow_lo_q8: q(c.shadow_min_ratio, 256.0, 256.0) as u32,
             shadow_hi_q8: q(c.shadow_max_ratio, 256.0, 256.0) as u32,
             fast_startup: c.fast_startup,
+            update_interval: c.update_interval.clamp(1, MAX_UPDATE_INTERVAL),
         }
     }
+}
+
+/// Longest mean and variance update interval accepted.
+pub const MAX_UPDATE_INTERVAL: u32 = 8;
+
+/// Whether the 64-pixel chunk `c` of row `y` updates its means and
+/// variances in frame `frame` (staggered so that every frame updates
+/// `1/N` of the chunks).
+#[inline(always)]
+pub fn updates_chunk(interval: u32, frame: u32, y: usize, c: usize) -> bool {
+    interval <= 1 || (frame as usize).wrapping_add(y).wrapping_add(c) % interval as usize == 0
 }
 
 /// Learning rates of one frame, Q0.16.
@@ -144,6 +169,13 @@ pub struct Rates {
     pub a_fg: u16,
     /// `α c_T` for foreground pixels (`≤ a_fg`).
     pub act_fg: u16,
+    /// Frames between mean and variance updates this frame: the config's
+    /// `N` once `α ≤ 1/(16 N)`, 1 before (start-up).
+    pub interval: u32,
+    /// `N α`, the rate of the mean and variance update (`ρ = N α / w`).
+    pub ua: u16,
+    /// `N α` for foreground pixels.
+    pub ua_fg: u16,
 }
 
 impl Rates {
@@ -153,11 +185,20 @@ impl Rates {
         let a = ((65536 + frames / 2) / frames.max(1)).min(65535);
         let a_fg = ((a * p.fg_rate_q16 + 32768) >> 16).min(65535);
         let ct = |a: u32| ((a * p.ct_q16 + 32768) >> 16).min(a);
+        let n = if frames >= 16 * p.update_interval {
+            p.update_interval
+        } else {
+            1
+        };
         Rates {
             a: a as u16,
             act: ct(a) as u16,
             a_fg: a_fg as u16,
             act_fg: ct(a_fg) as u16,
+            interval: n,
+            // N α ≤ 1/16 (+ rounding) when N > 1: fits Q0.16, ρ ≤ 2 N α ≤ 1/8.
+            ua: (a * n).min(65535) as u16,
+            ua_fg: (a_fg * n).min(65535) as u16,
         }
     }
 }
@@ -180,7 +221,9 @@ fn mul_dither(a: u16, b: u16, dither: u16) -> u16 {
 /// `1/w` in Q2.14 for a weight `w` in Q0.16 with `w > 32768` (w > ½):
 /// the chord `3 − 2w` then one Newton step `r(2 − w r)`. Relative error
 /// ≤ 1.6 % (the chord's 12.5 % squared) plus ≤ 2⁻¹³ rounding; all
-/// products are 16×16 bits.
+/// products are 16×16 bits. Other `w` give a meaningless value (the
+/// shifts drop bits), never a panic: the fast path computes it on every
+/// lane and discards those.
 #[inline(always)]
 pub fn recip_q14(w: u16) -> u16 {
     // r0 ≈ 3 − 2w in Q2.14 (3 = 49152, 2w = w/2), one unit low so that
@@ -260,7 +303,9 @@ pub enum Class {
 }
 
 /// The full per-pixel update (any case). `w`, `mu`, `var` are the pixel's
-/// `K` modes; returns the pixel's class.
+/// `K` modes; `update`: this frame moves the matched mode's mean and
+/// variance ([`updates_chunk`]); returns the pixel's class.
+#[allow(clippy::too_many_arguments)]
 pub fn slow_pixel<const K: usize>(
     x: u8,
     w: &mut [u16; K],
@@ -269,6 +314,7 @@ pub fn slow_pixel<const K: usize>(
     p: &Params,
     r: &Rates,
     dither: u16,
+    update: bool,
 ) -> Class {
     let n = w.iter().take_while(|&&v| v > 0).count();
     if n == 0 {
@@ -314,20 +360,22 @@ pub fn slow_pixel<const K: usize>(
             cum += u64::from(w[k]);
         }
     }
-    let (a, act) = if class == Class::Foreground {
-        (r.a_fg, r.act_fg)
+    let (a, act, ua) = if class == Class::Foreground {
+        (r.a_fg, r.act_fg, r.ua_fg)
     } else {
-        (r.a, r.act)
+        (r.a, r.act, r.ua)
     };
     for k in 0..n {
         if Some(k) == matched {
             let wn = grow(w[k], a, act);
             w[k] = wn;
-            let rho = rho_q16(a, wn);
-            let ad = u16::from(mu[k].abs_diff(x));
-            let d2 = 2 * ad * ad; // matched: ad ≤ 56, d2 < 6375
-            mu[k] = step_mean(mu[k], x, rho, dither);
-            var[k] = step_var(var[k], d2, rho, !dither, p.var_min, p.var_max);
+            if update {
+                let rho = rho_q16(ua, wn);
+                let ad = u16::from(mu[k].abs_diff(x));
+                let d2 = 2 * ad * ad; // matched: ad ≤ 56, d2 < 6375
+                mu[k] = step_mean(mu[k], x, rho, dither);
+                var[k] = step_var(var[k], d2, rho, !dither, p.var_min, p.var_max);
+            }
         } else {
             w[k] = decay(w[k], a, act);
         }
@@ -366,84 +414,105 @@ pub fn slow_pixel<const K: usize>(
     class
 }
 
-/// Fast path on one 64-pixel chunk of one row: every pixel whose heaviest
-/// mode matches and whose updated weight is above ½ is updated here
-/// (identically to [`slow_pixel`]); returns a bit per pixel left for the
-/// slow path (whose state is untouched).
+/// Fast path on one 64-pixel chunk of one row, in place on the model rows:
+/// every pixel whose heaviest mode matches and whose updated weight is above
+/// ½ is updated here (identically to [`slow_pixel`]); returns a bit per
+/// pixel left for the slow path (whose state is untouched). `wrow` is the
+/// row's weights (mode `k` at `k·wd..`), the chunk starts at column `x0`.
+/// `UPDATE`: the chunk's means and variances move this frame
+/// ([`updates_chunk`]); without, only weights change (a third of the work).
 ///
-/// Written for the auto-vectoriser: 16-bit values only in the main loop
-/// (products as `mulhi`/`wrapping_mul` pairs: `pmulhuw`/`pmullw` on SSE2),
-/// selects as masks.
+/// Written for the auto-vectoriser: 16-bit lanes only (products as
+/// `mulhi`/`wrapping_mul` pairs: `pmulhuw`/`pmullw` on SSE2, `umull` on
+/// NEON), compares on values below 2¹⁵ done as `i16` (one `pcmpgtw`, no
+/// sign-flip), signs applied as `(d ^ s) − s`, selects as masks. Lanes
+/// that fail the test compute garbage (wrapping, never a panic) that is
+/// discarded.
 #[inline(always)]
-fn fast_chunk<const K: usize>(
-    x: &[u8],
-    w: &mut [[u16; CHUNK]; K],
-    mu0: &mut [u8],
-    var0: &mut [u8],
-    dither: &[u16],
+#[allow(clippy::too_many_arguments)]
+fn fast_chunk<const K: usize, const UPDATE: bool>(
+    x: &[u8; CHUNK],
+    wrow: &mut [u16],
+    wd: usize,
+    x0: usize,
+    mu0: &mut [u8; CHUNK],
+    var0: &mut [u8; CHUNK],
+    dither: &[u16; CHUNK],
     p: &Params,
     r: &Rates,
+    lanes: &Lanes,
 ) -> u64 {
-    let (x, mu0, var0, dither) = (
-        &x[..CHUNK],
-        &mut mu0[..CHUNK],
-        &mut var0[..CHUNK],
-        &dither[..CHUNK],
-    );
-    let mut xs = [0u16; CHUNK];
-    let mut ms = [0u16; CHUNK];
-    let mut vs = [0u16; CHUNK];
-    for i in 0..CHUNK {
-        xs[i] = u16::from(x[i]);
-        ms[i] = u16::from(mu0[i]);
-        vs[i] = u16::from(var0[i]);
-    }
     let mut good = [0u16; CHUNK];
-    let (a, act, a_net) = (r.a, r.act, r.a - r.act);
-    // `α` as a lane array the optimiser cannot see through: multiplying by
-    // a known splat makes LLVM widen to 32-bit lanes (pmuludq) instead of
-    // using pmulhuw.
-    let av = core::hint::black_box([a; CHUNK]);
-    let (tg, vlo, vhi) = (p.tg_sig_q8, u16::from(p.var_min), u16::from(p.var_max));
-    {
-        let w0 = &mut w[0];
-        for i in 0..CHUNK {
-            let (xi, m, v, wo, dith) = (xs[i], ms[i], vs[i], w0[i], dither[i]);
-            let up = xi >= m;
-            let ad = if up { xi - m } else { m - xi };
-            let adc = ad.min(63);
-            let d2 = 2 * adc * adc;
-            let thr = mulhi(v << 8, tg);
-            let wn = (wo - mulhi(wo, av[i])).saturating_add(a_net);
-            let g = (d2 < thr) & (wo != 0) & (wn > 32768);
-            let rho = mulhi(av[i], recip_q14(wn.max(32769))).min(16383) << 2;
-            let dm = mul_dither(rho, ad, dith);
-            let m2 = if up { m + dm } else { m - dm };
-            let vup = d2 >= v;
-            let e = if vup { d2 - v } else { v - d2 };
-            let dv = mul_dither(rho, e, !dith);
-            let v2 = if vup { v + dv } else { v - dv }.max(vlo).min(vhi);
-            let gm = 0u16.wrapping_sub(u16::from(g));
-            w0[i] = (wn & gm) | (wo & !gm);
-            ms[i] = (m2 & gm) | (m & !gm);
-            vs[i] = (v2 & gm) | (v & !gm);
-            good[i] = gm;
+    let mut ok = [0u8; CHUNK];
+    let (act, a_net) = (r.act, r.a - r.act);
+    let (av, uav, tgv) = (&lanes.a, &lanes.ua, &lanes.tg);
+    let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
+    let w0 = chunk_mut(wrow, x0);
+    for i in 0..CHUNK {
+        let (m, v, wo, dith) = (i16::from(mu0[i]), i16::from(var0[i]), w0[i], dither[i]);
+        // |x − μ| ≤ 255 and its sign s (0 or −1).
+        let diff = i16::from(x[i]) - m;
+        let s = diff >> 15;
+        let ad = (diff ^ s) - s;
+        let adc = ad.min(63);
+        let d2 = 2 * adc * adc; // < 8192
+        let thr = mulhi((v as u16) << 8, tgv[i]) as i16; // ≤ 6375
+        let wn = (wo - mulhi(wo, av[i])).saturating_add(a_net);
+        // wn > 32768 as a signed compare of wn − 2¹⁵.
+        let g = (d2 < thr) & (wo != 0) & ((wn ^ 0x8000) as i16 > 0);
+        w0[i] = if g { wn } else { wo };
+        good[i] = (-i16::from(g)) as u16;
+        ok[i] = u8::from(g);
+        if !UPDATE {
+            continue;
         }
+        let rho = mulhi(uav[i], recip_q14(wn)).min(16383) << 2;
+        let dm = mul_dither(rho, ad as u16, dith) as i16; // ≤ |x − μ|
+        let m2 = m + ((dm ^ s) - s);
+        let vd = d2 - v;
+        let vs = vd >> 15;
+        let dv = mul_dither(rho, ((vd ^ vs) - vs) as u16, !dith) as i16;
+        let v2 = (v + ((dv ^ vs) - vs)).max(vlo).min(vhi);
+        let gm = -i16::from(g);
+        mu0[i] = ((m2 & gm) | (m & !gm)) as u8;
+        var0[i] = ((v2 & gm) | (v & !gm)) as u8;
     }
-    for wk in w.iter_mut().skip(1) {
+    for k in 1..K {
+        let wk = chunk_mut(wrow, k * wd + x0);
         for i in 0..CHUNK {
             let wo = wk[i];
-            let gm = good[i];
-            wk[i] = (decay(wo, av[i], act) & gm) | (wo & !gm);
+            wk[i] = if good[i] != 0 {
+                decay(wo, av[i], act)
+            } else {
+                wo
+            };
         }
     }
-    let mut ok = [0u8; CHUNK];
-    for i in 0..CHUNK {
-        mu0[i] = ms[i] as u8;
-        var0[i] = vs[i] as u8;
-        ok[i] = (good[i] & 1) as u8;
-    }
     !pack_flags(&ok)
+}
+
+/// Per-frame factors of the fast path as lane arrays the optimiser cannot
+/// see through (made once per frame behind `black_box`): multiplying by a
+/// known splat makes LLVM widen to 32-bit lanes (`pmuludq`) instead of
+/// using `pmulhuw`.
+struct Lanes {
+    a: [u16; CHUNK],
+    ua: [u16; CHUNK],
+    tg: [u16; CHUNK],
+}
+
+/// The `CHUNK` values of `s` from `at` (callers keep `at + CHUNK ≤ len`).
+#[inline(always)]
+fn chunk<T>(s: &[T], at: usize) -> &[T; CHUNK] {
+    s[at..at + CHUNK].try_into().expect("chunk inside the row")
+}
+
+/// Mutable [`chunk`].
+#[inline(always)]
+fn chunk_mut<T>(s: &mut [T], at: usize) -> &mut [T; CHUNK] {
+    (&mut s[at..at + CHUNK])
+        .try_into()
+        .expect("chunk inside the row")
 }
 
 /// Packs up to 64 bytes of 0/1 (a multiple of 8) into bits, byte `i` to bit
@@ -628,6 +697,11 @@ impl Background {
         let mut fg_count = 0u32;
         let mut shadow = 0u32;
         let frame_off = (self.frame as usize).wrapping_mul(2_654_435_761) % DITHER_PERIOD;
+        let lanes = core::hint::black_box(Lanes {
+            a: [r.a; CHUNK],
+            ua: [r.ua; CHUNK],
+            tg: [p.tg_sig_q8; CHUNK],
+        });
         for y in 0..ht {
             let xrow = &frame.y[y * wd..(y + 1) * wd];
             let base = y * K * wd;
@@ -642,24 +716,19 @@ impl Background {
             for (c, (mword, sword)) in mrow.iter_mut().zip(srow.iter_mut()).enumerate() {
                 let x0 = c * CHUNK;
                 let x1 = (x0 + CHUNK).min(wd);
+                let update = updates_chunk(r.interval, self.frame, y, c);
                 let mut todo = if c < full {
-                    let mut wk = [[0u16; CHUNK]; K];
-                    for (k, wk) in wk.iter_mut().enumerate() {
-                        wk.copy_from_slice(&wrow[k * wd + x0..k * wd + x1]);
-                    }
-                    let hard = fast_chunk::<K>(
-                        &xrow[x0..x1],
-                        &mut wk,
-                        &mut murow[x0..x1],
-                        &mut varrow[x0..x1],
-                        &drow[x0..x1],
-                        &p,
-                        r,
+                    let (xs, ms, vs, ds) = (
+                        chunk(xrow, x0),
+                        chunk_mut(murow, x0),
+                        chunk_mut(varrow, x0),
+                        chunk(drow, x0),
                     );
-                    for (k, wk) in wk.iter().enumerate() {
-                        wrow[k * wd + x0..k * wd + x1].copy_from_slice(wk);
+                    if update {
+                        fast_chunk::<K, true>(xs, wrow, wd, x0, ms, vs, ds, &p, r, &lanes)
+                    } else {
+                        fast_chunk::<K, false>(xs, wrow, wd, x0, ms, vs, ds, &p, r, &lanes)
                     }
-                    hard
                 } else if x1 - x0 == CHUNK {
                     u64::MAX
                 } else {
@@ -679,7 +748,8 @@ impl Background {
                         mu[k] = murow[k * wd + x];
                         var[k] = varrow[k * wd + x];
                     }
-                    let class = slow_pixel::<K>(xrow[x], &mut w, &mut mu, &mut var, &p, r, drow[x]);
+                    let class =
+                        slow_pixel::<K>(xrow[x], &mut w, &mut mu, &mut var, &p, r, drow[x], update);
                     for k in 0..K {
                         wrow[k * wd + x] = w[k];
                         murow[k * wd + x] = mu[k];

@@ -127,11 +127,15 @@ impl ChromaBackground {
             self.t = 1;
             return;
         }
-        // α = 1/(t+1) at start-up, then 1/history; Q12 so that
-        // (Δ in Q8.8, |Δ| < 2^16) × rate (≤ 2^12) < 2^28 fits an i32.
+        // α = 1/(t+1) at start-up (t ≥ 1 here, so ≤ ½), then 1/history; Q12.
         let rate = (RATE_ONE / (self.t as i32).saturating_add(1)).max(self.rate_min);
-        let thr = (self.threshold as i32) << 8;
-        let thr_soft = (self.shadow_threshold as i32) << 8;
+        // The same rate in Q0.16 for 16-bit lanes: ≤ 2048 · 16 = 2¹⁵.
+        let r16 = (rate as u16) << 4;
+        let thr = (self.threshold.min(255) as u16) << 8;
+        let thr_soft = (self.shadow_threshold.min(255) as u16) << 8;
+        // The rate as a lane array the optimiser cannot see through (a
+        // known splat makes LLVM widen the products to 32-bit lanes).
+        let rv = core::hint::black_box([r16; 32]);
         let height = mask.len() / words_per_row.max(1);
         for cy in 0..self.ch {
             let (srow_b, srow_r) = (cbp.row(cy), crp.row(cy));
@@ -146,15 +150,23 @@ impl ChromaBackground {
                 let mut sf = [0u8; 32];
                 let (xb, xr) = (&srow_b[chunk..end], &srow_r[chunk..end]);
                 let (mb, mr) = (&mut mrow_b[chunk..end], &mut mrow_r[chunk..end]);
-                for i in 0..n {
-                    let db = (i32::from(xb[i]) << 8) - i32::from(mb[i]);
-                    let dr = (i32::from(xr[i]) << 8) - i32::from(mr[i]);
-                    let l1 = db.abs() + dr.abs();
-                    fg[i] = u8::from(l1 > thr);
-                    sf[i] = u8::from(l1 > thr_soft);
-                    // Round to nearest; the mean stays within [0, 255·256].
-                    mb[i] = (i32::from(mb[i]) + ((db * rate + 2048) >> 12)) as u16;
-                    mr[i] = (i32::from(mr[i]) + ((dr * rate + 2048) >> 12)) as u16;
+                if n == 32 {
+                    // Fixed length: the loop vectorises without a tail.
+                    let t = (&mut fg, &mut sf);
+                    samples::<32>(
+                        (xb.try_into().expect("32"), xr.try_into().expect("32")),
+                        (mb.try_into().expect("32"), mr.try_into().expect("32")),
+                        t,
+                        &rv,
+                        (thr, thr_soft),
+                    );
+                } else {
+                    for i in 0..n {
+                        let (f, s) =
+                            sample(xb[i], xr[i], &mut mb[i], &mut mr[i], r16, (thr, thr_soft));
+                        fg[i] = f;
+                        sf[i] = s;
+                    }
                 }
                 let soft_bits = pack_flags(&sf) as u32;
                 if soft_bits == 0 {
@@ -183,6 +195,59 @@ impl ChromaBackground {
     }
 }
 
+/// [`sample`] on `N` samples: Cb, Cr values, their means, the two flag
+/// arrays, the rate per lane and the two thresholds.
+#[inline(always)]
+fn samples<const N: usize>(
+    x: (&[u8; N], &[u8; N]),
+    m: (&mut [u16; N], &mut [u16; N]),
+    flags: (&mut [u8; N], &mut [u8; N]),
+    rate: &[u16; N],
+    thr: (u16, u16),
+) {
+    for i in 0..N {
+        let (f, s) = sample(x.0[i], x.1[i], &mut m.0[i], &mut m.1[i], rate[i], thr);
+        flags.0[i] = f;
+        flags.1[i] = s;
+    }
+}
+
+/// One chroma sample `(xb, xr)` against its means (Q8.8), updated at rate
+/// `r16` (Q0.16, `≤ 2¹⁵`); returns whether `|ΔCb| + |ΔCr|` exceeds each
+/// threshold (Q8.8). Unsigned 16-bit lanes only, so that 8 samples
+/// vectorise to a 128-bit register: each difference as its two saturated
+/// halves, one of them 0.
+#[inline(always)]
+fn sample(xb: u8, xr: u8, mb: &mut u16, mr: &mut u16, r16: u16, thr: (u16, u16)) -> (u8, u8) {
+    let (xb8, xr8) = (u16::from(xb) << 8, u16::from(xr) << 8);
+    let (bp, bn) = (xb8.saturating_sub(*mb), mb.saturating_sub(xb8));
+    let (rp, rn) = (xr8.saturating_sub(*mr), mr.saturating_sub(xr8));
+    // |ΔCb| + |ΔCr| saturated at 2¹⁶ − 1, above both thresholds.
+    let l1 = (bp | bn).saturating_add(rp | rn);
+    // The means stay within [0, 255·256]: each step is at most |Δ|.
+    *mb = *mb + rate_up(bp, r16) - rate_down(bn, r16);
+    *mr = *mr + rate_up(rp, r16) - rate_down(rn, r16);
+    (u8::from(l1 > thr.0), u8::from(l1 > thr.1))
+}
+
+/// `d · rate` (rate `r16` in Q0.16, `≤ 2¹⁵`) rounded to nearest, halves
+/// up: `⌊(d·r + 2¹⁵) / 2¹⁶⌋` from the two 16-bit halves of the product
+/// (`pmulhuw` / `pmullw`).
+#[inline(always)]
+fn rate_up(d: u16, r16: u16) -> u16 {
+    let hi = ((u32::from(d) * u32::from(r16)) >> 16) as u16;
+    hi + (d.wrapping_mul(r16) >> 15)
+}
+
+/// The magnitude of the step down for a difference of `−d`: rounded to
+/// nearest with halves toward `+∞` (`⌈(d·r − 2¹⁵) / 2¹⁶⌉`), so that with
+/// [`rate_up`] the update is `⌊(Δ·r + 2¹⁵) / 2¹⁶⌋` for the signed `Δ`.
+#[inline(always)]
+fn rate_down(d: u16, r16: u16) -> u16 {
+    let hi = ((u32::from(d) * u32::from(r16)) >> 16) as u16;
+    hi + u16::from(d.wrapping_mul(r16) > 32768)
+}
+
 /// Moves bit `i` of `b` to bits `2i` and `2i + 1`.
 fn spread2(b: u32) -> u64 {
     let w = spread(b);
@@ -204,6 +269,40 @@ mod tests {
     use super::*;
     use crate::detect::morphology::BitMask;
     use crate::frame::Size;
+
+    /// The 16-bit lane update and test equal the signed 32-bit formula
+    /// `m + ⌊(Δ·rate + 2048) / 4096⌋`, `|ΔCb| + |ΔCr| > thr` (rate in Q12).
+    #[test]
+    fn lane_update_equals_signed_formula() {
+        let mut s: u32 = 12345;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s
+        };
+        for case in 0..400_000u32 {
+            let rate = [1, 8, 9, 455, 1024, 2048][case as usize % 6] + (next() % 3) as i32 - 1;
+            let rate = rate.clamp(1, 2048);
+            let (xb, xr) = (next() as u8, next() as u8);
+            // Means near the values (ties included) and anywhere.
+            let near =
+                |x: u8, r: u32| (i32::from(x) * 256 + (r % 1024) as i32 - 512).clamp(0, 65280);
+            let (mut mb, mut mr) = if case % 2 == 0 {
+                (near(xb, next()) as u16, near(xr, next()) as u16)
+            } else {
+                ((next() % 65281) as u16, (next() % 65281) as u16)
+            };
+            let (ob, or) = (mb, mr);
+            let thr = ((next() % 256) as u16) << 8;
+            let (f, _) = sample(xb, xr, &mut mb, &mut mr, (rate as u16) << 4, (thr, thr));
+            let db = (i32::from(xb) << 8) - i32::from(ob);
+            let dr = (i32::from(xr) << 8) - i32::from(or);
+            assert_eq!(i32::from(mb), i32::from(ob) + ((db * rate + 2048) >> 12));
+            assert_eq!(i32::from(mr), i32::from(or) + ((dr * rate + 2048) >> 12));
+            assert_eq!(f == 1, db.abs() + dr.abs() > i32::from(thr));
+        }
+    }
 
     #[test]
     fn spread_doubles_bits() {

@@ -54,6 +54,13 @@ impl FloatGmm {
             c.history
         };
         let alpha = 1.0 / f64::from(frames);
+        // Means and variances move every `n` frames at `n` times the rate,
+        // per 64-pixel block, staggered (`background::updates_chunk`).
+        let interval = if frames >= 16 * c.update_interval {
+            c.update_interval
+        } else {
+            1
+        };
         let alpha_fg = alpha * c.foreground_rate;
         let (tb, tg) = (
             c.background_sigma * c.background_sigma,
@@ -64,6 +71,7 @@ impl FloatGmm {
             for x in 0..self.width {
                 let i = y * self.width + x;
                 let v = f64::from(frame.y[i]);
+                let update = (self.frame as usize + y + x / 64) % interval as usize == 0;
                 let m = &mut self.modes[i * self.k..(i + 1) * self.k];
                 let n = m.iter().take_while(|q| q.w > 0.0).count();
                 if n == 0 {
@@ -112,10 +120,12 @@ impl FloatGmm {
                 for (j, q) in m.iter_mut().enumerate().take(n) {
                     if Some(j) == matched {
                         q.w = (q.w - a * q.w + a - act).min(1.0);
-                        let rho = (a / q.w).min(1.0);
-                        let d = v - q.mu;
-                        q.mu += rho * d;
-                        q.var = (q.var + rho * (d * d - q.var)).clamp(c.var_min, c.var_max);
+                        if update {
+                            let rho = (f64::from(interval) * a / q.w).min(1.0);
+                            let d = v - q.mu;
+                            q.mu += rho * d;
+                            q.var = (q.var + rho * (d * d - q.var)).clamp(c.var_min, c.var_max);
+                        }
                     } else {
                         q.w = (q.w - a * q.w - act).max(0.0);
                     }

@@ -21,7 +21,11 @@ pub fn rgb(c: embedded_graphics::pixelcolor::Rgb888) -> Option<[u8; 3]> {
 /// a `w`×`h` image whose pixels `pixel` reads. Where it crosses the image:
 /// a line in ≥ 60 % of those columns, and in ≥ 95 % either the line or
 /// something the snapshot draws over it (a track's box or label, text).
-/// Where it misses the image: an arrow on the edge toward it.
+/// Where it misses the image: an arrow on the edge toward it. A horizon
+/// that cuts only a corner (≤ a quarter of the columns) is a line too, as
+/// the snapshot draws one whenever the line meets the image, but its
+/// fixed-width label may cover more than 40 % of it: there only the 95 %
+/// rule applies.
 pub fn assert_horizon_drawn(
     pixel: &dyn Fn(i64, i64) -> Option<[u8; 3]>,
     (w, h): (i64, i64),
@@ -45,7 +49,7 @@ pub fn assert_horizon_drawn(
             .map(|u| (u, (-(a * u as f64 + k) / b).round() as i64))
             .filter(|&(_, v)| (0..h).contains(&v))
             .collect();
-        if inside.len() as i64 > w / 4 {
+        if !inside.is_empty() {
             let n = inside.len();
             let line = inside
                 .iter()
@@ -55,8 +59,9 @@ pub fn assert_horizon_drawn(
                 .iter()
                 .filter(|&&(u, v)| !any(u, v, &[colour::HORIZON]) && any(u, v, &over))
                 .count();
+            let short = n as i64 <= w / 4;
             assert!(
-                line * 10 >= n * 6 && (line + hidden) * 20 >= n * 19,
+                (short || line * 10 >= n * 6) && (line + hidden) * 20 >= n * 19,
                 "horizon {horizon:?}: drawn in {line} of {n} columns, covered in {hidden}"
             );
             return;
