@@ -280,7 +280,13 @@ fn signal_stops_cleanly_with_bye(signal: &str) {
     );
     stdin.write_all(&clip).unwrap();
     stdin.flush().unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(500));
+    // The hello record comes after the signal handlers are installed; a
+    // signal sent before would kill the process (slow start-ups, e.g.
+    // under qemu-user on a loaded machine, did outlast a fixed sleep).
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut hello = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut hello).unwrap();
+    assert!(hello.contains("\"hello\""), "{hello}");
     let pid = child.id().to_string();
     assert!(Command::new("kill")
         .args([signal, &pid])
@@ -306,13 +312,15 @@ fn signal_stops_cleanly_with_bye(signal: &str) {
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
     assert!(sent < 2000, "the process ignored {signal}");
+    let mut rest = hello.into_bytes();
+    std::io::Read::read_to_end(&mut stdout, &mut rest).unwrap();
     let out = child.wait_with_output().unwrap();
     assert!(
         out.status.success(),
         "{signal}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let recs = records(&out.stdout);
+    let recs = records(&rest);
     assert_eq!(recs.last().unwrap()["type"], "bye");
     // The pipe was never closed, so only the signal can have ended the run.
     assert!(recs.last().unwrap()["frames"].as_u64().unwrap() <= sent);
