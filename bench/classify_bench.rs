@@ -102,7 +102,12 @@ fn main() {
         lbp.histograms(black_box(&win), stride);
         black_box(lbp.features(&layout.lbp_cells, &mut feats[cd..ld]));
     });
+    let ad = ld + usize::from(layout.aspect_bins);
+    stage("box shape", &mut |i| {
+        window::aspect_features(&boxes[i % boxes.len()], &mut feats[ld..ad]);
+    });
     let model = cls.model().clone();
+    // The last box's shape picks the expert(s) of a gated model.
     stage("SVM dot product", &mut |_| {
         black_box(model.dot(black_box(&feats)));
     });
