@@ -107,7 +107,6 @@ fn main() {
         window::aspect_features(&boxes[i % boxes.len()], &mut feats[ld..ad]);
     });
     let model = cls.model().clone();
-    // The last box's shape picks the expert(s) of a gated model.
     stage("SVM dot product", &mut |_| {
         black_box(model.dot(black_box(&feats)));
     });

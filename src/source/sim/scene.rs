@@ -96,7 +96,6 @@ pub struct SceneSpec {
     pub drift: (f64, f64),
 }
 
-/// Every built-in scene; the first is the demo default.
 impl SceneSpec {
     /// The scene's camera as the renderer projects with it.
     pub fn projection(&self) -> super::math::Proj {
@@ -111,6 +110,7 @@ impl SceneSpec {
     }
 }
 
+/// Every built-in scene; the first is the demo default.
 pub fn scenes() -> &'static [SceneSpec] {
     &SCENES
 }
