@@ -15,20 +15,12 @@
 # integration tests spawn is the one build.sh ships (built once, here or
 # there, whichever runs first).
 #
-# Every test runs on aarch64 except one, which cannot work under qemu-user
-# at all:
+# Every test runs on both targets except one, which cannot work under
+# qemu-user at all:
 #   serial_sink_delivers_and_survives_a_stuck_reader (tests/sinks.rs):
 #     qemu-user does not translate the TCGETS2 ioctl that serialport uses
 #     on the pseudo-terminal ("Not a typewriter"). cross/vm-test.sh runs
 #     this test binary, aarch64 and armv7, on a real arm64 kernel instead.
-# armv7 also leaves out the end-to-end accuracy runs (tests/suite/
-# live_accuracy.rs: six simulated clips and PETS through the whole loop),
-# the slowest tests under emulation on that target (no NEON in the
-# emulated integer paths: about 5 CPU minutes of CI's budget): cross/
-# bitexact.sh runs the armv7 binary on PETS frames and 1000 frames of
-# sim:plaza with calibration and heights, and its report streams must be
-# byte-identical to the host's, whose accuracy the host and aarch64 runs
-# of the same tests check.
 #
 # How the run fits CI's time: one cargo invocation builds both targets'
 # tests (one job queue for both), then the test binaries of both targets
@@ -58,7 +50,6 @@ fi
 
 # The one test qemu-user cannot run (see above).
 qemu_skips=(--skip serial_sink_delivers_and_survives_a_stuck_reader)
-armv7_skips=(--skip live_accuracy::)
 # soak: the same warm-up and checks as the host's 20,000 frames, a shorter tail.
 export SOAK_FRAMES=${SOAK_FRAMES:-2000}
 jobs_max=${CROSS_TEST_JOBS:-$(($(nproc) + 1))}
@@ -114,11 +105,9 @@ run_one() { # TRIPLE NAME EXE
     # itself allocates while the test runs (its "has been running for over
     # 60 seconds" notice), which a slow emulated run reaches.
     case $2 in alloc_free | soak) n=1 ;; esac
-    local skips=("${qemu_skips[@]}")
-    [[ $1 != armv7-* ]] || skips+=("${armv7_skips[@]}")
     # shellcheck disable=SC2046
     /usr/bin/time -f "%e %U %S" -o "$log.time" \
-        $(runner_of "$1") "$3" --test-threads="$n" "${skips[@]}" >"$log" 2>&1 || rc=$?
+        $(runner_of "$1") "$3" --test-threads="$n" "${qemu_skips[@]}" >"$log" 2>&1 || rc=$?
     read -r wall user sys < <(tail -1 "$log.time")
     printf 'cross/test.sh: %-32s %-11s %s in %4.0f s wall, %4.0f s CPU\n' "$1" "$2" \
         "$([[ $rc -eq 0 ]] && echo ok || echo "FAILED ($rc)")" "$wall" "$(awk "BEGIN {print $user + $sys}")"
