@@ -153,7 +153,8 @@ impl Pipeline {
             };
             t.last_report = frame;
             t.reported = Some((c.height as f32, c.samples));
-            let b = t.bbox;
+            // The box where the head and foot points were taken.
+            let b = t.seen_box;
             let h = Height {
                 // A final height is dated to the last frame the person was
                 // seen, where its head/foot points were taken.

@@ -162,6 +162,9 @@ pub struct Track {
     pub last: HeadFoot,
     /// Frame of `last`.
     pub last_seen: u64,
+    /// Box of the region snapped to at `last_seen` (`bbox` coasts on with
+    /// the particles and may leave the image after the person did).
+    pub seen_box: BBox,
     /// Frames it has been tracked.
     pub age: u32,
     /// Frame of the last region support.
@@ -395,6 +398,7 @@ impl Tracker {
                 sampled: false,
                 last: HeadFoot::default(),
                 last_seen: frame_no,
+                seen_box: r.bbox,
                 age: 0,
                 last_support: frame_no,
                 merged: false,
@@ -608,6 +612,7 @@ fn snap(
     };
     t.last = hf;
     t.last_seen = frame_no;
+    t.seen_box = r.bbox;
     if r.touches_border {
         return;
     }

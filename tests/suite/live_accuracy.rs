@@ -36,6 +36,24 @@ fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: 
     assert!(h.records >= 3, "{scene}: heights {h:?}");
     assert!(h.abs_median <= max_height, "{scene}: heights {h:?}");
     assert_eq!(h.non_person, 0, "{scene}: a dog or car was measured: {h:?}");
+    // A final record's box is where its head and foot were seen: inside
+    // the image, around the foot point (a coasting track's box drifts
+    // away). The foot may lie a little outside the region's box: its
+    // column is on the body axis, its row gets back what the opening took.
+    let (w, hgt) = (r.scene.width as f32, r.scene.height as f32);
+    for f in &r.final_heights {
+        let b = f.bbox.map(f32::from);
+        let tol = (0.1 * (b[3] - b[1])).max(4.0);
+        assert!(
+            b[2] < w && b[3] < hgt,
+            "{scene}: box outside the image: {f:?}"
+        );
+        assert!(
+            (b[0] - tol..=b[2] + tol).contains(&f.foot_px[0])
+                && (b[1]..=b[3] + tol).contains(&f.foot_px[1]),
+            "{scene}: box away from its foot point: {f:?}"
+        );
+    }
     assert!(
         h.measured * 5 >= h.eligible * 2,
         "{scene}: recall of people seen 3 s {h:?}"
