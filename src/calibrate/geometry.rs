@@ -274,8 +274,9 @@ impl ViewGeometry {
     pub fn height_ratio(&self, o: &HeadFoot) -> Option<f64> {
         let mut r = self.cross_ratio(o.head, o.foot)?;
         if self.foot_offset > 0.0 {
+            let ground = self.ground_frame();
             for _ in 0..3 {
-                let foot = self.foot_under_head(o.foot, self.foot_offset * r.max(0.0))?;
+                let foot = ground.foot_under_head(o.foot, self.foot_offset * r.max(0.0))?;
                 r = self.cross_ratio(o.head, foot)?;
             }
         }
@@ -302,10 +303,64 @@ impl ViewGeometry {
     /// meets the ground (one camera height down) at lateral `x / (ray·D)`,
     /// forward `(ray·F) / (ray·D)` from the nadir.
     pub fn foot_under_head(&self, foot: [f64; 2], shift: f64) -> Option<[f64; 2]> {
+        self.ground_frame().foot_under_head(foot, shift)
+    }
+
+    /// The per-view constants of [`ViewGeometry::foot_under_head`], computed
+    /// once for all the fixed-point steps of a height.
+    fn ground_frame(&self) -> GroundFrame {
         let a = self.axis();
-        let across = [a[1], -a[0]];
-        let (f, t) = (self.focal(), self.tilt());
-        let (st, ct) = (libm::sin(t), libm::cos(t));
+        let t = self.tilt();
+        GroundFrame {
+            p: self.p,
+            axis: a,
+            across: [a[1], -a[0]],
+            f: self.focal(),
+            st: libm::sin(t),
+            ct: libm::cos(t),
+        }
+    }
+
+    /// The image of the point `ratio·h_c` straight above `foot` (METHOD.md
+    /// eq. 7's reference head, computed by inverting the cross ratio).
+    pub fn head_for_ratio(&self, foot: [f64; 2], ratio: f64) -> Option<[f64; 2]> {
+        // Along the line foot→v parameterised by distance s from the foot
+        // (positive away from v), D(s) = D_f + s·k with k = -axis·dir.
+        let fv = dist(foot, self.v);
+        let df = self.below_horizon(foot);
+        if fv <= 1e-9 || df <= 1e-9 {
+            return None;
+        }
+        let dir = [(foot[0] - self.v[0]) / fv, (foot[1] - self.v[1]) / fv];
+        let n = self.axis();
+        let k = dir[0] * n[0] + dir[1] * n[1]; // dD/ds, negative upward
+                                               // 1 - ratio = D(s)·fv / (df·(fv + s)) → linear in s.
+        let q = (1.0 - ratio) * df;
+        let denom = k * fv - q;
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let s = (q * fv - df * fv) / denom;
+        Some([foot[0] + s * dir[0], foot[1] + s * dir[1]])
+    }
+}
+
+/// A view's camera frame with the roll removed (see
+/// [`ViewGeometry::foot_under_head`]): principal point, image axis toward
+/// `v` and across it, focal length, sine and cosine of the tilt.
+#[derive(Clone, Copy, Debug)]
+struct GroundFrame {
+    p: [f64; 2],
+    axis: [f64; 2],
+    across: [f64; 2],
+    f: f64,
+    st: f64,
+    ct: f64,
+}
+
+impl GroundFrame {
+    fn foot_under_head(&self, foot: [f64; 2], shift: f64) -> Option<[f64; 2]> {
+        let (a, across, f, st, ct) = (self.axis, self.across, self.f, self.st, self.ct);
         let q = [foot[0] - self.p[0], foot[1] - self.p[1]];
         let (x, y) = (
             q[0] * across[0] + q[1] * across[1],
@@ -332,29 +387,6 @@ impl ViewGeometry {
             self.p[0] + x * across[0] + y * a[0],
             self.p[1] + x * across[1] + y * a[1],
         ])
-    }
-
-    /// The image of the point `ratio·h_c` straight above `foot` (METHOD.md
-    /// eq. 7's reference head, computed by inverting the cross ratio).
-    pub fn head_for_ratio(&self, foot: [f64; 2], ratio: f64) -> Option<[f64; 2]> {
-        // Along the line foot→v parameterised by distance s from the foot
-        // (positive away from v), D(s) = D_f + s·k with k = -axis·dir.
-        let fv = dist(foot, self.v);
-        let df = self.below_horizon(foot);
-        if fv <= 1e-9 || df <= 1e-9 {
-            return None;
-        }
-        let dir = [(foot[0] - self.v[0]) / fv, (foot[1] - self.v[1]) / fv];
-        let n = self.axis();
-        let k = dir[0] * n[0] + dir[1] * n[1]; // dD/ds, negative upward
-                                               // 1 - ratio = D(s)·fv / (df·(fv + s)) → linear in s.
-        let q = (1.0 - ratio) * df;
-        let denom = k * fv - q;
-        if denom.abs() < 1e-12 {
-            return None;
-        }
-        let s = (q * fv - df * fv) / denom;
-        Some([foot[0] + s * dir[0], foot[1] + s * dir[1]])
     }
 }
 
