@@ -15,7 +15,6 @@ use std::sync::{Mutex, MutexGuard, OnceLock};
 
 use stature::camera::{line_distance, Camera};
 use stature::frame::Frame;
-use stature::source::sim::math::Proj;
 use stature::source::sim::people::{self, Kind};
 use stature::source::sim::{scene, ObjectTruth, SimSource};
 use stature::source::{FrameSource, Next};
