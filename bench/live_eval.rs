@@ -425,6 +425,13 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         let maj = run.majority();
         for h in &run.final_heights {
             if let Some((k, id)) = maj.get(&h.track_id) {
+                if std::env::var("FINALS").is_ok() {
+                    println!(
+                        "  final: frame {} track {} -> {:?} {id} (true {:.2}): {:.2} m from {} samples",
+                        h.frame, h.track_id, k, run.true_heights.get(id).copied().unwrap_or(f64::NAN),
+                        h.height_m, h.samples
+                    );
+                }
                 if *k != Kind::Person {
                     println!("  NON-PERSON height: track {} -> {:?} {id}: {:.2} m from {} samples, bbox {:?}", h.track_id, k, h.height_m, h.samples, h.bbox);
                 }
@@ -445,6 +452,9 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         hs.non_person,
         if cfg.calibrate.camera_height_m > 0.0 { "camera height" } else { "prior" }
     );
+    if std::env::var("MISSES").is_ok() {
+        recall_misses(&run);
+    }
     let ccfg = CalibrateConfig {
         camera_height_m: st.camera_height_m,
         ..cfg.calibrate.clone()
@@ -573,5 +583,80 @@ fn main() {
         } else {
             run(&scene, s, frames, &extra, &toml);
         }
+    }
+}
+
+/// Why eligible people got no final height: each one's tracks, with the
+/// samples they gave and whether the track ended with a height.
+fn recall_misses(run: &stature::calibrate::live::LiveRun) {
+    let majority = run.majority();
+    let min_frames = 3 * u64::from(run.scene.fps);
+    let finals: BTreeMap<u32, (f32, u32)> = run
+        .final_heights
+        .iter()
+        .map(|h| (h.track_id, (h.height_m, h.samples)))
+        .collect();
+    for (&id, &seen) in &run.seen_frames {
+        if seen < min_frames {
+            continue;
+        }
+        let measured = finals.keys().any(|t| {
+            majority
+                .get(t)
+                .is_some_and(|m| m.0 == Kind::Person && m.1 == id)
+        });
+        if measured {
+            continue;
+        }
+        // Samples per track on this person.
+        let mut per_track: BTreeMap<u32, (u64, u64, u64)> = BTreeMap::new();
+        for o in &run.observations {
+            let e = per_track.entry(o.track).or_insert((0, 0, u64::MAX));
+            if o.truth
+                .is_some_and(|m| m.kind == Kind::Person && m.id == id)
+            {
+                e.0 += 1;
+                e.2 = e.2.min(o.frame);
+            }
+            e.1 += 1;
+        }
+        let tracks: Vec<String> = per_track
+            .iter()
+            .filter(|(_, v)| v.0 > 0)
+            .map(|(t, v)| {
+                format!(
+                    "t{t} {}/{} from f{} maj {:?} final {:?}",
+                    v.0,
+                    v.1,
+                    v.2,
+                    majority.get(t).map(|m| m.1),
+                    finals.get(t)
+                )
+            })
+            .collect();
+        let own = per_track
+            .iter()
+            .filter(|(t, v)| v.0 > 0 && majority.get(t).is_some_and(|m| m.1 == id))
+            .map(|(_, v)| v.0)
+            .max()
+            .unwrap_or(0);
+        let why = if tracks.is_empty() {
+            "untracked"
+        } else if own >= 8 {
+            "unmeasured"
+        } else if own > 0 {
+            "fragments"
+        } else {
+            "others"
+        };
+        println!(
+            "  miss: {why} person {id} h {:.2} seen {seen} frames; tracks: {}",
+            run.true_heights.get(&id).copied().unwrap_or(f64::NAN),
+            if tracks.is_empty() {
+                "none".into()
+            } else {
+                tracks.join("; ")
+            }
+        );
     }
 }

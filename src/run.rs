@@ -1,13 +1,16 @@
 //! The vision loop: owns every buffer, calls the stages in data-flow order,
 //! and hands records to the reporter. Nothing here allocates per frame.
 
+use crate::calibrate::geometry::HeadFoot;
 use crate::calibrate::state::StateFile;
 use crate::calibrate::Calibrator;
 use crate::classify::{Classifier, Verdict};
 use crate::config::Config;
+use crate::detect::BBox;
 use crate::detect::{Detector, RegionSet};
 use crate::frame::Frame;
-use crate::measure::Measurer;
+use crate::measure::pending::PendingPool;
+use crate::measure::{Corrected, Measurer};
 use crate::report::record::{self, Bye, Calibration, Height, Hello, Record, Status};
 use crate::report::Reporter;
 use crate::source::{FrameSource, Next, SourceError, SourceInfo, SourceState};
@@ -27,6 +30,11 @@ pub struct Pipeline {
     tracker: Tracker,
     calib: Calibrator,
     measurer: Measurer,
+    pending: PendingPool,
+    pending_lost: u64,
+    pending_measured: u64,
+    /// Frame since which the calibration has been ready for heights.
+    ready_since: Option<u64>,
     fps: f64,
     /// The last calibration record sent (the final one after `finish`).
     pub calibration: Option<Calibration>,
@@ -46,6 +54,12 @@ pub struct Occupancy {
     pub track_capacity: usize,
     /// Track births refused because the table was full, since start.
     pub track_overflow: u64,
+    /// Tracks waiting for a confident calibration to be measured.
+    pub pending: usize,
+    /// Such tracks given up unmeasured because their pool was full, since start.
+    pub pending_lost: u64,
+    /// Such tracks measured later, since start.
+    pub pending_measured: u64,
     /// Calibration anchors stored.
     pub anchors: usize,
     /// Anchor store capacity.
@@ -62,6 +76,9 @@ impl Pipeline {
             tracks: self.tracker.live() as usize,
             track_capacity: self.tracker.capacity(),
             track_overflow: self.tracker.overflow,
+            pending: self.pending.len(),
+            pending_lost: self.pending_lost,
+            pending_measured: self.pending_measured,
             anchors: self.calib.anchor_count(),
             anchor_capacity: self.calib.anchor_capacity(),
         }
@@ -86,6 +103,10 @@ impl Pipeline {
             tracker: Tracker::new(&cfg.track, max_regions),
             calib: Self::calibrator(cfg, info),
             measurer: Measurer::new(&cfg.measure, crate::track::RING),
+            pending: PendingPool::new(cfg.measure.pending_tracks),
+            pending_lost: 0,
+            pending_measured: 0,
+            ready_since: None,
             fps: if info.fps_f64() > 0.0 {
                 info.fps_f64()
             } else {
@@ -139,9 +160,18 @@ impl Pipeline {
     }
 
     /// Heights of live and just-ended tracks: a record for every track
-    /// due (or every one with `all`), final for ended tracks.
+    /// due (or every one with `all`, at the end), final for ended tracks.
+    /// A track that ended before the calibration was ready is parked and
+    /// measured later ([`crate::measure::pending`]).
     fn heights(&mut self, reporter: &mut Reporter, frame: u64, all: bool) {
         let est = self.calib.estimate().copied();
+        let ready = self.measurer.ready(est.as_ref());
+        self.ready_since = if ready {
+            self.ready_since.or(Some(frame))
+        } else {
+            None
+        };
+        let min_samples = self.measurer.config().min_samples;
         let interval = u64::from(self.measurer.config().report_interval);
         for t in self.tracker.tracks_mut() {
             let due = t.ended || all || (t.sampled && frame >= t.last_report + interval);
@@ -149,28 +179,53 @@ impl Pipeline {
                 continue;
             }
             let Some(c) = self.measurer.track_height(est.as_ref(), t.sample_iter()) else {
+                if t.ended && !ready && t.samples.len() >= min_samples {
+                    if let Some(old) = self.pending.park(t) {
+                        // Not ready, so the one handed back cannot be measured.
+                        self.pending_lost += 1;
+                        log::warn!(
+                            "track {}: left before the calibration was ready and the \
+                             pool of such tracks is full; no height for it",
+                            old.id
+                        );
+                    }
+                }
                 continue;
             };
             t.last_report = frame;
             t.reported = Some((c.height as f32, c.samples));
-            // The box where the head and foot points were taken.
-            let b = t.seen_box;
-            let h = Height {
-                // A final height is dated to the last frame the person was
-                // seen, where its head/foot points were taken.
-                frame: if t.ended { t.last_seen } else { frame },
-                track_id: t.id,
-                height_m: c.height as f32,
-                samples: c.samples,
-                foot_px: [t.last.foot[0] as f32, t.last.foot[1] as f32],
-                head_px: [t.last.head[0] as f32, t.last.head[1] as f32],
-                bbox: [b.x0, b.y0, b.x1, b.y1],
-                is_final: t.ended,
-            };
+            // A final height is dated to the last frame the person was
+            // seen, where its head/foot points were taken.
+            let at = if t.ended { t.last_seen } else { frame };
+            let h = height_record(at, t.id, &c, &t.last, &t.seen_box, t.ended);
             if t.ended && self.final_heights.len() < FINAL_HEIGHTS_KEPT {
                 self.final_heights.push(h.clone());
             }
             reporter.send(Record::Height(h));
+        }
+        let waited = self.ready_since.is_some_and(|f0| {
+            (frame - f0) as f64 >= self.measurer.config().pending_wait_s * self.fps
+        });
+        let settled = self.measurer.settled(est.as_ref());
+        if ready && !self.pending.is_empty() && (all || settled || waited) {
+            let (measurer, finals) = (&mut self.measurer, &mut self.final_heights);
+            let (waiting, mut measured) = (self.pending.len(), 0usize);
+            self.pending.drain(|p| {
+                let samples = p.samples.oldest_ordered();
+                let Some(c) = measurer.track_height(est.as_ref(), samples) else {
+                    return;
+                };
+                let h = height_record(p.last_seen, p.id, &c, &p.last, &p.seen_box, true);
+                if finals.len() < FINAL_HEIGHTS_KEPT {
+                    finals.push(h.clone());
+                }
+                reporter.send(Record::Height(h));
+                measured += 1;
+            });
+            self.pending_measured += measured as u64;
+            log::info!(
+                "measured {measured} of {waiting} people who left before the calibration was ready"
+            );
         }
     }
 
@@ -216,6 +271,29 @@ impl Pipeline {
     /// People tracked now.
     pub fn tracks(&self) -> u32 {
         self.tracker.live()
+    }
+}
+
+/// A height record of track `id` measured as `c`, its points and box
+/// from the frame `frame` it was last seen in.
+fn height_record(
+    frame: u64,
+    id: u32,
+    c: &Corrected,
+    last: &HeadFoot,
+    seen_box: &BBox,
+    is_final: bool,
+) -> Height {
+    let b = seen_box;
+    Height {
+        frame,
+        track_id: id,
+        height_m: c.height as f32,
+        samples: c.samples,
+        foot_px: [last.foot[0] as f32, last.foot[1] as f32],
+        head_px: [last.head[0] as f32, last.head[1] as f32],
+        bbox: [b.x0, b.y0, b.x1, b.y1],
+        is_final,
     }
 }
 

@@ -58,6 +58,8 @@ pub struct LiveRun {
     pub seen_frames: BTreeMap<u32, u64>,
     /// True standing height of every person of the cast.
     pub true_heights: BTreeMap<u32, f64>,
+    /// How full the loop's tables were at the end (and what they lost).
+    pub occupancy: crate::run::Occupancy,
 }
 
 /// Intersection over union of inclusive boxes `[x0, y0, x1, y1]`.
@@ -135,6 +137,7 @@ pub fn run_sim(
     p.finish(&mut reporter);
     drop(reporter);
     drain.join().map_err(|_| "report drain thread panicked")?;
+    let occupancy = p.occupancy();
     let true_heights = sim
         .cast()
         .iter()
@@ -149,6 +152,7 @@ pub fn run_sim(
         final_heights: std::mem::take(&mut p.final_heights),
         seen_frames,
         true_heights,
+        occupancy,
     })
 }
 

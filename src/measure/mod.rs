@@ -47,6 +47,16 @@ pub struct MeasureConfig {
     /// Corrected heights above this are not reported, metres (two people
     /// one above the other in the image, a pole taken for a person).
     pub max_height_m: f64,
+    /// Tracks that ended before the calibration was confident, kept (with
+    /// their samples) until it is, then measured ([`pending`]).
+    pub pending_tracks: usize,
+    /// The calibration confidence those tracks wait for (at least
+    /// `min_confidence`; at the end of the stream, or once the calibration
+    /// has been usable for `pending_wait_s`, `min_confidence` is enough).
+    pub pending_confidence: f64,
+    /// Seconds of a usable calibration after which the waiting tracks are
+    /// measured even if it has not reached `pending_confidence`.
+    pub pending_wait_s: f64,
     /// RANSAC seed.
     pub seed: u64,
 }
@@ -62,6 +72,9 @@ impl Default for MeasureConfig {
             report_interval: 25,
             min_height_m: 0.9,
             max_height_m: 2.4,
+            pending_tracks: 16,
+            pending_confidence: 0.5,
+            pending_wait_s: 60.0,
             seed: 2,
         }
     }
@@ -86,6 +99,13 @@ impl MeasureConfig {
             self.max_height_m,
             self.min_height_m.max(1.0)..=5.0,
         )?;
+        check_range("measure.pending_tracks", self.pending_tracks, 0..=256)?;
+        check_range(
+            "measure.pending_confidence",
+            self.pending_confidence,
+            self.min_confidence..=1.0,
+        )?;
+        check_range("measure.pending_wait_s", self.pending_wait_s, 0.0..=86400.0)?;
         Ok(())
     }
 }
@@ -127,6 +147,12 @@ impl Measurer {
     /// Whether the calibration is good enough to report heights.
     pub fn ready(&self, est: Option<&Estimate>) -> bool {
         est.is_some_and(|e| e.confidence >= self.cfg.min_confidence)
+    }
+
+    /// Whether it is good enough for the tracks that left before it was
+    /// ready ([`pending`]).
+    pub fn settled(&self, est: Option<&Estimate>) -> bool {
+        est.is_some_and(|e| e.confidence >= self.cfg.pending_confidence)
     }
 
     /// The corrected height of a track from its observations with the
@@ -191,6 +217,8 @@ pub fn ransac_mean(h: &[f64], cfg: &MeasureConfig, rng: &mut Rng) -> Option<Corr
         considered: h.len() as u32,
     })
 }
+
+pub mod pending;
 
 #[cfg(test)]
 mod tests;

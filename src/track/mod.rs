@@ -188,6 +188,36 @@ pub struct Track {
 }
 
 impl Track {
+    /// A track born at `frame_no` on a region with box `bbox`, before its
+    /// particles and colour model are set.
+    pub(crate) fn born(id: u32, bbox: BBox, frame_no: u64) -> Track {
+        Track {
+            id,
+            bbox,
+            centre: [0.0; 2],
+            size: [0.0; 2],
+            particles: heapless::Vec::new(),
+            hist: [0.0; MAX_BINS],
+            samples: HistoryBuffer::new(),
+            fresh: None,
+            sampled: false,
+            last: HeadFoot::default(),
+            last_seen: frame_no,
+            seen_box: bbox,
+            age: 0,
+            last_support: frame_no,
+            merged: false,
+            ended: false,
+            last_report: frame_no,
+            reported: None,
+            extent: 0.0,
+            snapped: [0.0; 2],
+            snaps: 0,
+            rejects: 0,
+            prev_snap: ([0.0; 2], frame_no),
+        }
+    }
+
     /// Accepted samples, oldest first.
     pub fn sample_iter(&self) -> impl Iterator<Item = &HeadFoot> {
         self.samples.oldest_ordered()
@@ -386,31 +416,7 @@ impl Tracker {
                 self.overflow += 1;
                 continue;
             }
-            let mut t = Track {
-                id: self.next_id,
-                bbox: r.bbox,
-                centre: [0.0; 2],
-                size: [0.0; 2],
-                particles: heapless::Vec::new(),
-                hist: [0.0; MAX_BINS],
-                samples: HistoryBuffer::new(),
-                fresh: None,
-                sampled: false,
-                last: HeadFoot::default(),
-                last_seen: frame_no,
-                seen_box: r.bbox,
-                age: 0,
-                last_support: frame_no,
-                merged: false,
-                ended: false,
-                last_report: frame_no,
-                reported: None,
-                extent: 0.0,
-                snapped: [0.0; 2],
-                snaps: 0,
-                rejects: 0,
-                prev_snap: ([0.0; 2], frame_no),
-            };
+            let mut t = Track::born(self.next_id, r.bbox, frame_no);
             let (c, s) = centre_of(&r.bbox);
             t.centre = c;
             t.size = s;

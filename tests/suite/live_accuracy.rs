@@ -24,7 +24,7 @@ fn run(scene: &str) -> LiveRun {
 /// Floors of one scene: focal error, tilt and roll errors (degrees), and
 /// the median absolute height error in the default scale mode (a 1.70 m
 /// population prior against people drawn around 1.70 m).
-fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: f64) {
+fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: f64) -> LiveRun {
     let r = run(scene);
     let e = r.calibration_error().expect("a final calibration");
     let h = r.heights();
@@ -55,14 +55,19 @@ fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: 
         );
     }
     assert!(
-        h.measured * 5 >= h.eligible * 2,
+        h.measured * 2 >= h.eligible,
         "{scene}: recall of people seen 3 s {h:?}"
     );
+    assert_eq!(r.occupancy.pending_lost, 0, "{scene}: {:?}", r.occupancy);
+    r
 }
 
 #[test]
 fn plaza_calibrates_and_measures() {
-    check("plaza", 0.15, 2.5, 1.5, 0.08);
+    let r = check("plaza", 0.15, 2.5, 1.5, 0.08);
+    // People who walked through before the calibration was usable are
+    // measured once it is (measured: 4 of them on this clip).
+    assert!(r.occupancy.pending_measured >= 2, "{:?}", r.occupancy);
 }
 
 #[test]
