@@ -545,6 +545,16 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
             foot: [l.foot[0], t.foot[1]],
         });
         println!("  live x, true y       {}", calibrate(&v, &ccfg, w, h));
+        for cut in [50.0, 65.0, 80.0] {
+            let v = swap(&|l, t| {
+                let mut o = *l;
+                if l.extent() < cut {
+                    o.foot[1] = t.foot[1];
+                }
+                o
+            });
+            println!("  true foot y < {cut:3}  {}", calibrate(&v, &ccfg, w, h));
+        }
     }
 }
 
@@ -589,6 +599,19 @@ fn main() {
 /// Why eligible people got no final height: each one's tracks, with the
 /// samples they gave and whether the track ended with a height.
 fn recall_misses(run: &stature::calibrate::live::LiveRun) {
+    if let Ok(t) = std::env::var("TRACK") {
+        let t: u32 = t.parse().expect("TRACK=id");
+        for o in run.observations.iter().filter(|o| o.track == t) {
+            println!(
+                "  track {t} frame {} truth {:?} extent {:.1} head ({:.1},{:.1})",
+                o.frame,
+                o.truth.map(|m| (m.kind, m.id)),
+                o.live.extent(),
+                o.live.head[0],
+                o.live.head[1]
+            );
+        }
+    }
     let majority = run.majority();
     let min_frames = 3 * u64::from(run.scene.fps);
     let finals: BTreeMap<u32, (f32, u32)> = run

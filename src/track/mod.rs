@@ -41,6 +41,10 @@ pub const MAX_PARTICLES: usize = 64;
 /// Head/foot samples kept per track (the newest).
 pub const RING: usize = 128;
 
+/// Foot motion, pixels, over which a head that stayed put marks a pinned
+/// region top (`TrackConfig::pinned_head_ratio`).
+pub const PIN_MIN_FOOT_PX: f32 = 8.0;
+
 /// No track owns the region.
 const NO_OWNER: u8 = u8::MAX;
 
@@ -74,6 +78,16 @@ pub struct TrackConfig {
     /// alone does not break the track. Births still need a single-person
     /// verdict.
     pub keep_score: f64,
+    /// A sample whose head row has moved less than this fraction of its
+    /// foot row's motion since a run of samples began (over at least
+    /// [`PIN_MIN_FOOT_PX`] of foot motion) is rejected: the region's top is
+    /// pinned to something that does not move (a standing person behind,
+    /// a ghost in the background model) while the walker's feet do. A
+    /// walker's head moves `(H − h)/H` times as far as the feet (camera
+    /// height `H`, person height `h`): 0.6 at 4.2 m, 0.32 at 2.5 m, so the
+    /// default 0.15 only refuses true walkers under a camera mounted below
+    /// about 2 m. 0 disables it.
+    pub pinned_head_ratio: f64,
     /// Head and foot points on the silhouette's fitted body axis ([`axis`]):
     /// the rows of eq. 5, the columns of the axis. `false`: eq. 5 as the
     /// paper has it (top-most pixel, mean of the bottom-most ten).
@@ -95,6 +109,7 @@ impl Default for TrackConfig {
             position_noise: 0.05,
             max_extent_change: 0.15,
             keep_score: -0.5,
+            pinned_head_ratio: 0.15,
             axis_points: true,
             seed: 3,
         }
@@ -117,6 +132,7 @@ impl TrackConfig {
             self.max_extent_change,
             0.01..=1.0,
         )?;
+        check_range("track.pinned_head_ratio", self.pinned_head_ratio, 0.0..=1.0)?;
         check_range("track.keep_score", self.keep_score, -10.0..=10.0)?;
         if self.hue_bins * self.sat_bins + self.value_bins > MAX_BINS {
             return Err(ConfigError::new(
@@ -179,6 +195,9 @@ pub struct Track {
     /// (set by the loop; the installer snapshot shows it).
     pub reported: Option<(f32, u32)>,
     extent: f32,
+    /// Head and foot rows where the current run of head rows within
+    /// `pinned_head_ratio` of the foot motion began.
+    pin_start: [f32; 2],
     /// Width and height of the last region it snapped to, pixels.
     snapped: [f32; 2],
     /// Regions it snapped to (saturating).
@@ -211,6 +230,7 @@ impl Track {
             last_report: frame_no,
             reported: None,
             extent: 0.0,
+            pin_start: [f32::NAN; 2],
             snapped: [0.0; 2],
             snaps: 0,
             rejects: 0,
@@ -629,6 +649,19 @@ fn snap(
     if sudden && t.rejects < 5 {
         t.rejects += 1;
         return;
+    }
+    // The head moves with the feet (by (H − h)/H of their motion); a head
+    // row that stays while the feet walk on is the top of something else.
+    let (head_y, foot_y) = (r.head[1], r.foot[1]);
+    let ratio = cfg.pinned_head_ratio as f32;
+    let foot_moved = (foot_y - t.pin_start[1]).abs();
+    let head_moved = (head_y - t.pin_start[0]).abs();
+    if ratio > 0.0 && foot_moved >= PIN_MIN_FOOT_PX && head_moved < ratio * foot_moved {
+        return;
+    }
+    if !(head_moved <= ratio * foot_moved.max(PIN_MIN_FOOT_PX)) {
+        // Not pinned (or the first sample): a new run starts here.
+        t.pin_start = [head_y, foot_y];
     }
     t.rejects = 0;
     t.extent = if t.extent > 0.0 && !sudden {

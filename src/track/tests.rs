@@ -336,3 +336,42 @@ fn a_duplicate_track_on_one_person_ends() {
     );
     assert!(live[0].fresh.is_some() && !live[0].merged);
 }
+
+/// A walker coming toward the camera whose region is joined at the top by
+/// something that stays (a standing person behind): the region's top row
+/// stays while its bottom walks on. Those samples are refused; the same
+/// walk alone (head moving with the feet, as under a 4 m camera) is not.
+#[test]
+fn a_region_top_that_stays_while_the_feet_walk_is_refused() {
+    let walk = |pinned: bool| {
+        let (mut t, mut f, mut set) = setup(&TrackConfig::default());
+        let mut accepted = Vec::new();
+        for k in 0..30i32 {
+            // Feet move down 1 px a frame, the head 0.6 px (ratio (H-h)/H).
+            let foot = 140 + k;
+            let head = if pinned { 60 } else { 60 + (3 * k) / 5 };
+            let p = Person {
+                x0: 100,
+                y0: head,
+                w: 20,
+                h: foot - head,
+                yuv: RED,
+            };
+            paint(&mut f, &[p]);
+            set.clear();
+            region(&mut set, &[p]);
+            t.step(k as u64, 10.0, &f, &set, &single(1, true));
+            accepted.push(t.tracks()[0].fresh.is_some());
+        }
+        accepted
+    };
+    let alone = walk(false);
+    assert!(alone[1..].iter().all(|&a| a), "walker alone: {alone:?}");
+    let pinned = walk(true);
+    // Accepted until the feet have moved 8 px with the head still, then refused.
+    assert!(pinned[1..8].iter().all(|&a| a), "{pinned:?}");
+    assert!(
+        pinned[9..].iter().all(|&a| !a),
+        "pinned top accepted: {pinned:?}"
+    );
+}
