@@ -45,9 +45,12 @@ pub fn assert_horizon_drawn(
         colour::TEXT,
     ];
     if b.abs() > 1e-6 {
+        // Columns where the line lies within the image (the drawing clips
+        // it at rows 0 and h − 1, so a row that only rounds to 0 is out).
         let inside: Vec<(i64, i64)> = (0..w)
-            .map(|u| (u, (-(a * u as f64 + k) / b).round() as i64))
-            .filter(|&(_, v)| (0..h).contains(&v))
+            .map(|u| (u, -(a * u as f64 + k) / b))
+            .filter(|&(_, v)| (0.0..=(h - 1) as f64).contains(&v))
+            .map(|(u, v)| (u, v.round() as i64))
             .collect();
         if !inside.is_empty() {
             let n = inside.len();
