@@ -69,6 +69,45 @@ pub struct Occupancy {
 /// Final heights a [`Pipeline`] keeps for its summary.
 pub const FINAL_HEIGHTS_KEPT: usize = 1024;
 
+/// A part of [`Pipeline::process`], as [`Pipeline::process_staged`] names
+/// it to a [`Stages`] (per-stage benchmarks: `bench/loop.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Background model, clean-up and regions ([`Detector::process`]).
+    Detect,
+    /// HOG-LBP + SVM on each region (up to `classify.max_regions`).
+    Classify,
+    /// The tracker's step.
+    Track,
+    /// The tracks' fresh head/foot points into the calibrator.
+    Observe,
+    /// The calibrator's update (a refit when one is due).
+    Calibrate,
+    /// One track's height ([`Measurer::track_height`]).
+    Measure,
+    /// One record into the report queue ([`Reporter::send`]).
+    Report,
+}
+
+/// Runs the stages of [`Pipeline::process_staged`]. Stages do not nest;
+/// what is outside them (record building, the loops that pick the tracks
+/// due) is little.
+pub trait Stages {
+    /// Runs `f`, the work of `stage`, and returns what it returns. Called
+    /// in the loop: it must not allocate.
+    fn run<R>(&mut self, stage: Stage, f: impl FnOnce() -> R) -> R;
+}
+
+/// Runs every stage as it is: [`Pipeline::process`].
+pub struct Direct;
+
+impl Stages for Direct {
+    #[inline(always)]
+    fn run<R>(&mut self, _stage: Stage, f: impl FnOnce() -> R) -> R {
+        f()
+    }
+}
+
 impl Pipeline {
     /// How full the track table and the anchor store are now.
     pub fn occupancy(&self) -> Occupancy {
@@ -163,7 +202,7 @@ impl Pipeline {
     /// due (or every one with `all`, at the end), final for ended tracks.
     /// A track that ended before the calibration was ready is parked and
     /// measured later ([`crate::measure::pending`]).
-    fn heights(&mut self, reporter: &mut Reporter, frame: u64, all: bool) {
+    fn heights<S: Stages>(&mut self, reporter: &mut Reporter, frame: u64, all: bool, st: &mut S) {
         let est = self.calib.estimate().copied();
         let ready = self.measurer.ready(est.as_ref());
         self.ready_since = if ready {
@@ -178,7 +217,10 @@ impl Pipeline {
             if !due {
                 continue;
             }
-            let Some(c) = self.measurer.track_height(est.as_ref(), t.sample_iter()) else {
+            let measured = st.run(Stage::Measure, || {
+                self.measurer.track_height(est.as_ref(), t.sample_iter())
+            });
+            let Some(c) = measured else {
                 if t.ended && !ready && t.samples.len() >= min_samples {
                     if let Some(old) = self.pending.park(t) {
                         // Not ready, so the one handed back cannot be measured.
@@ -201,7 +243,8 @@ impl Pipeline {
             if t.ended && self.final_heights.len() < FINAL_HEIGHTS_KEPT {
                 self.final_heights.push(h.clone());
             }
-            reporter.send(Record::Height(h));
+            let rec = Record::Height(h);
+            st.run(Stage::Report, || reporter.send(rec));
         }
         let waited = self.ready_since.is_some_and(|f0| {
             (frame - f0) as f64 >= self.measurer.config().pending_wait_s * self.fps
@@ -231,28 +274,43 @@ impl Pipeline {
 
     /// Runs every stage on [`Pipeline::frame`] and queues the records it yields.
     pub fn process(&mut self, reporter: &mut Reporter) {
+        self.process_staged(reporter, &mut Direct);
+    }
+
+    /// [`Pipeline::process`], each stage run through `st` (benchmarks time
+    /// or count the stages with it; `process` is this with [`Direct`]).
+    pub fn process_staged<S: Stages>(&mut self, reporter: &mut Reporter, st: &mut S) {
         let frame = self.frames;
-        self.detector.process(&self.frame, &mut self.regions);
-        self.verdicts.clear();
-        let luma = self.frame.luma();
-        let regions = self.regions.regions();
-        for region in regions.iter().take(self.max_classified) {
-            self.verdicts.push(self.classifier.classify(luma, region));
-        }
-        self.classifier
-            .note_skipped(regions.len().saturating_sub(self.max_classified));
-        self.tracker
-            .step(frame, self.fps, &self.frame, &self.regions, &self.verdicts);
-        for t in self.tracker.tracks() {
-            if let Some(hf) = t.fresh {
-                self.calib.observe(frame, t.id, hf);
+        st.run(Stage::Detect, || {
+            self.detector.process(&self.frame, &mut self.regions)
+        });
+        st.run(Stage::Classify, || {
+            self.verdicts.clear();
+            let luma = self.frame.luma();
+            let regions = self.regions.regions();
+            for region in regions.iter().take(self.max_classified) {
+                self.verdicts.push(self.classifier.classify(luma, region));
             }
-        }
-        if let Some(c) = self.calib.update(frame) {
+            self.classifier
+                .note_skipped(regions.len().saturating_sub(self.max_classified));
+        });
+        st.run(Stage::Track, || {
+            self.tracker
+                .step(frame, self.fps, &self.frame, &self.regions, &self.verdicts)
+        });
+        st.run(Stage::Observe, || {
+            for t in self.tracker.tracks() {
+                if let Some(hf) = t.fresh {
+                    self.calib.observe(frame, t.id, hf);
+                }
+            }
+        });
+        if let Some(c) = st.run(Stage::Calibrate, || self.calib.update(frame)) {
             self.calibration = Some(c.clone());
-            reporter.send(Record::Calibration(c));
+            let rec = Record::Calibration(c);
+            st.run(Stage::Report, || reporter.send(rec));
         }
-        self.heights(reporter, frame, false);
+        self.heights(reporter, frame, false, st);
         self.frames += 1;
     }
 
@@ -265,7 +323,7 @@ impl Pipeline {
             reporter.send(Record::Calibration(c));
         }
         self.tracker.end_all();
-        self.heights(reporter, frame, true);
+        self.heights(reporter, frame, true, &mut Direct);
     }
 
     /// People tracked now.

@@ -272,25 +272,21 @@ impl ViewGeometry {
     /// it corrects; three fixed-point steps settle it (each one shrinks the
     /// change by the factor `κ·∂shift/∂h`, well under 0.1).
     pub fn height_ratio(&self, o: &HeadFoot) -> Option<f64> {
-        let mut r = self.cross_ratio(o.head, o.foot)?;
-        if self.foot_offset > 0.0 {
-            let ground = self.ground_frame();
-            for _ in 0..3 {
-                let foot = ground.foot_under_head(o.foot, self.foot_offset * r.max(0.0))?;
-                r = self.cross_ratio(o.head, foot)?;
-            }
-        }
-        Some(r)
+        self.ratio_frame().height_ratio(o)
     }
 
-    fn cross_ratio(&self, head: [f64; 2], foot: [f64; 2]) -> Option<f64> {
-        let df = self.below_horizon(foot);
-        let hv = dist(head, self.v);
-        if df <= 1e-9 || hv <= 1e-9 {
-            return None;
+    /// The per-view constants of [`ViewGeometry::height_ratio`] (axis,
+    /// focal length, the tilt's sine and cosine), for many heights under
+    /// one view: [`RatioFrame::height_ratio`] gives the same ratios to the
+    /// bit without recomputing them (three libm calls and four square roots
+    /// a height).
+    pub fn ratio_frame(&self) -> RatioFrame {
+        RatioFrame {
+            v: self.v,
+            d: self.d,
+            foot_offset: self.foot_offset,
+            ground: self.ground_frame(),
         }
-        let r = 1.0 - self.below_horizon(head) * dist(foot, self.v) / (df * hv);
-        r.is_finite().then_some(r)
     }
 
     /// The image of the ground point `shift` camera heights farther from
@@ -342,6 +338,46 @@ impl ViewGeometry {
         }
         let s = (q * fv - df * fv) / denom;
         Some([foot[0] + s * dir[0], foot[1] + s * dir[1]])
+    }
+}
+
+/// A view prepared for many heights ([`ViewGeometry::ratio_frame`]).
+#[derive(Clone, Copy, Debug)]
+pub struct RatioFrame {
+    v: [f64; 2],
+    d: f64,
+    foot_offset: f64,
+    ground: GroundFrame,
+}
+
+impl RatioFrame {
+    /// [`ViewGeometry::height_ratio`] of the view this was made from.
+    pub fn height_ratio(&self, o: &HeadFoot) -> Option<f64> {
+        let mut r = self.cross_ratio(o.head, o.foot)?;
+        if self.foot_offset > 0.0 {
+            for _ in 0..3 {
+                let shift = self.foot_offset * r.max(0.0);
+                let foot = self.ground.foot_under_head(o.foot, shift)?;
+                r = self.cross_ratio(o.head, foot)?;
+            }
+        }
+        Some(r)
+    }
+
+    /// [`ViewGeometry::below_horizon`], with the axis computed once.
+    fn below_horizon(&self, x: [f64; 2]) -> f64 {
+        let (p, n) = (self.ground.p, self.ground.axis);
+        (x[0] - p[0]) * n[0] + (x[1] - p[1]) * n[1] + self.d
+    }
+
+    fn cross_ratio(&self, head: [f64; 2], foot: [f64; 2]) -> Option<f64> {
+        let df = self.below_horizon(foot);
+        let hv = dist(head, self.v);
+        if df <= 1e-9 || hv <= 1e-9 {
+            return None;
+        }
+        let r = 1.0 - self.below_horizon(head) * dist(foot, self.v) / (df * hv);
+        r.is_finite().then_some(r)
     }
 }
 

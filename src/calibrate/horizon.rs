@@ -86,7 +86,9 @@ impl Groups<'_> {
 
 /// Calls `f(residual_px)` for every anchor taking part, under horizon `d`:
 /// its extent less the extent its track's median height would give there.
-/// `ratios` is scratch of one `f64` per anchor. Returns the number of tracks
+/// `ratios` is scratch of two `f64` per anchor (each anchor's ratio is
+/// computed once, kept for the residual while a copy is sorted for the
+/// median). Returns the number of tracks
 /// whose median height ratio is not physical (at or below zero), which the
 /// caller penalises.
 fn residuals(
@@ -97,11 +99,17 @@ fn residuals(
     mut f: impl FnMut(f64),
 ) -> usize {
     let mut bad = 0;
+    // The view's constants once for all the anchors (same ratios).
+    let g = g.ratio_frame();
+    let (ratios, kept) = ratios.split_at_mut(anchors.len());
     groups.each(|start, end| {
         let mut k = 0usize;
         for i in start..end {
             if groups.inlier[i] {
-                if let Some(r) = g.height_ratio(&anchors[i].head_foot()) {
+                // A ratio is finite when there is one: NaN marks none.
+                let r = g.height_ratio(&anchors[i].head_foot());
+                kept[i] = r.unwrap_or(f64::NAN);
+                if let Some(r) = r {
                     ratios[start + k] = r;
                     k += 1;
                 }
@@ -122,10 +130,9 @@ fn residuals(
             return;
         }
         for i in start..end {
-            if groups.inlier[i] {
-                if let Some(r) = g.height_ratio(&anchors[i].head_foot()) {
-                    f(anchors[i].extent() * (r - mid) / mid);
-                }
+            let r = kept[i];
+            if groups.inlier[i] && !r.is_nan() {
+                f(anchors[i].extent() * (r - mid) / mid);
             }
         }
     });
@@ -191,7 +198,7 @@ fn search(lo: f64, hi: f64, n: usize, f: impl Fn(f64) -> f64) -> f64 {
 /// Fits the horizon distance for the vertical vanishing point of `g0`
 /// (its `d` is ignored). `anchors` are grouped by track (`track_of`, equal
 /// values contiguous); only anchors flagged in `inlier` take part.
-/// `scratch` holds two `f64` per anchor. `half_size` is the image's half
+/// `scratch` holds three `f64` per anchor. `half_size` is the image's half
 /// size in pixels (the grid's unit). `None` with fewer than two tracks of
 /// [`MIN_TRACK_ANCHORS`] anchors, or when no candidate is physical.
 pub fn fit_horizon(
@@ -231,10 +238,10 @@ pub fn fit_horizon(
     if !(lo < hi) {
         return None;
     }
-    if scratch.len() < 2 * n {
+    if scratch.len() < 3 * n {
         return None;
     }
-    let (ratios, absres) = scratch.split_at_mut(n);
+    let (ratios, absres) = scratch.split_at_mut(2 * n);
     // search() needs a shared closure; the ratio scratch lives in a cell.
     let cell = core::cell::RefCell::new(ratios);
     let eval = |d: f64, c: f64| cost(anchors, &groups, g0, d, c, &mut cell.borrow_mut());
@@ -351,7 +358,7 @@ mod tests {
             let truth = ViewGeometry::of_camera(&cam);
             let (a, t) = walks(&cam, 12, 1.0, &mut rng);
             let inl = vec![true; a.len()];
-            let mut scratch = vec![0.0; 2 * a.len()];
+            let mut scratch = vec![0.0; 3 * a.len()];
             let fit = fit_horizon(&a, &t, &inl, &truth, 320.0, &mut scratch).unwrap();
             let rel = fit.d / truth.d - 1.0;
             assert!(
@@ -381,7 +388,7 @@ mod tests {
             x.foot[1] -= 0.33 * (x.foot[1] - x.head[1]);
         }
         let inl = vec![true; a.len()];
-        let mut scratch = vec![0.0; 2 * a.len()];
+        let mut scratch = vec![0.0; 3 * a.len()];
         let fit = fit_horizon(&a, &t, &inl, &truth, 320.0, &mut scratch).unwrap();
         assert!(
             (fit.d / truth.d - 1.0).abs() < 0.05,
@@ -435,7 +442,7 @@ mod tests {
             let truth = ViewGeometry::of_camera(&cam);
             let (a, t) = walks(&cam, 12, 2.5, &mut rng);
             let inl = vec![true; a.len()];
-            let mut scratch = vec![0.0; 2 * a.len()];
+            let mut scratch = vec![0.0; 3 * a.len()];
             let fit = fit_horizon(&a, &t, &inl, &truth, 320.0, &mut scratch).unwrap();
             fit_err += (fit.d / truth.d - 1.0).abs();
             pair_err += (pairs_median(&a, &t, &truth) / truth.d - 1.0).abs();
@@ -459,7 +466,7 @@ mod tests {
         let truth = ViewGeometry::of_camera(&cam);
         let (a, t) = walks(&cam, 1, 0.5, &mut Rng::new(1));
         let inl = vec![true; a.len()];
-        let mut scratch = vec![0.0; 2 * a.len()];
+        let mut scratch = vec![0.0; 3 * a.len()];
         assert_eq!(fit_horizon(&a, &t, &inl, &truth, 320.0, &mut scratch), None);
     }
 }

@@ -308,7 +308,7 @@ pub struct Calibrator {
     flat: Vec<Anchor>,
     flat_slot: Vec<u16>,
     inlier: Vec<bool>,
-    /// Two `f64` per anchor for the fits.
+    /// Three `f64` per anchor for the fits.
     scratch: Vec<f64>,
     ratios: Vec<f64>,
     rng: Rng,
@@ -337,7 +337,7 @@ impl Calibrator {
             flat: Vec::with_capacity(total),
             flat_slot: Vec::with_capacity(total),
             inlier: vec![false; total],
-            scratch: vec![0.0; 2 * total],
+            scratch: vec![0.0; 3 * total],
             ratios: Vec::with_capacity(cfg.anchors_per_track.max(cfg.tracks)),
             rng: Rng::new(cfg.seed),
             seq: 0,
@@ -599,7 +599,7 @@ impl Calibrator {
             &self.inlier[..n],
             &g0,
             self.norm.s,
-            &mut self.scratch[..2 * n],
+            &mut self.scratch[..3 * n],
         ) else {
             return;
         };
@@ -695,6 +695,7 @@ impl Calibrator {
     fn median_ratio(&mut self, s: usize, geom: &ViewGeometry) -> Option<f64> {
         self.ratios.clear();
         let k = self.cfg.anchors_per_track;
+        let geom = geom.ratio_frame();
         for i in 0..self.slots[s].len {
             if let Some(r) = geom.height_ratio(&self.anchors[s * k + i].head_foot()) {
                 self.ratios.push(r);

@@ -72,12 +72,7 @@ impl Vertical {
     /// Unit image direction at normalised point `x` toward the vanishing
     /// point below ("down" along the vertical through `x`).
     pub fn down_at(&self, x: [f64; 2]) -> [f64; 2] {
-        let d = [
-            libm::sin(self.phi) - self.w * x[0],
-            libm::cos(self.phi) - self.w * x[1],
-        ];
-        let n = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-300);
-        [d[0] / n, d[1] / n]
+        Down::of(self).at(x)
     }
 }
 
@@ -87,6 +82,32 @@ struct Line {
     rel: [f64; 2],
     extent: f64,
     motion: [f64; 2],
+}
+
+/// [`Vertical::down_at`] with the sine and cosine of `φ` computed once for
+/// many points (the same directions to the bit): the fit evaluates every
+/// anchor's residual a few thousand times per refit.
+#[derive(Clone, Copy)]
+struct Down {
+    sin: f64,
+    cos: f64,
+    w: f64,
+}
+
+impl Down {
+    fn of(v: &Vertical) -> Self {
+        Down {
+            sin: libm::sin(v.phi),
+            cos: libm::cos(v.phi),
+            w: v.w,
+        }
+    }
+
+    fn at(&self, x: [f64; 2]) -> [f64; 2] {
+        let d = [self.sin - self.w * x[0], self.cos - self.w * x[1]];
+        let n = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-300);
+        [d[0] / n, d[1] / n]
+    }
 }
 
 fn line(a: &Anchor, norm: &Normaliser) -> Line {
@@ -103,8 +124,8 @@ fn line(a: &Anchor, norm: &Normaliser) -> Line {
 
 /// Signed angle (radians, small-angle sine) of the observed head across
 /// the vertical through the foot, less the lean expected from its motion.
-fn residual(v: &Vertical, lean: f64, l: &Line) -> f64 {
-    let d = v.down_at(l.foot);
+fn residual(v: &Down, lean: f64, l: &Line) -> f64 {
+    let d = v.at(l.foot);
     let across = [-d[1], d[0]];
     let off = (across[0] * l.rel[0] + across[1] * l.rel[1]) / l.extent.max(1e-12);
     off - lean * (across[0] * l.motion[0] + across[1] * l.motion[1])
@@ -183,6 +204,7 @@ pub fn fit_vertical(
     // (lean zero), plus "all lines parallel" for a level camera.
     let tau2 = 0.1f64 * 0.1;
     let score = |v: &Vertical| {
+        let v = &Down::of(v);
         let mut s = 0.0;
         for i in 0..n {
             let e = residual(v, 0.0, &lines(i));
@@ -220,6 +242,7 @@ pub fn fit_vertical(
     let mut lean = 0.0;
     // Iteratively reweighted Gauss–Newton in (φ, w, λ).
     let robust_cost = |v: &Vertical, lean: f64, c: f64| {
+        let v = &Down::of(v);
         let mut s = 0.0;
         for i in 0..n {
             let u = residual(v, lean, &lines(i)) / c;
@@ -234,42 +257,42 @@ pub fn fit_vertical(
     let mut scale = MIN_SCALE;
     let mut normal = Matrix3::zeros();
     for _ in 0..STEPS {
+        let h = 1e-6;
+        // The point and its four central-difference neighbours.
+        let dv = Down::of(&v);
+        let (phi_p, phi_m) = (
+            Down::of(&Vertical {
+                phi: v.phi + h,
+                ..v
+            }),
+            Down::of(&Vertical {
+                phi: v.phi - h,
+                ..v
+            }),
+        );
+        let (w_p, w_m) = (
+            Down::of(&Vertical { w: v.w + h, ..v }),
+            Down::of(&Vertical { w: v.w - h, ..v }),
+        );
         for (i, s) in scratch[..n].iter_mut().enumerate() {
-            *s = residual(&v, lean, &lines(i));
+            *s = residual(&dv, lean, &lines(i));
         }
         scale = (1.4826 * median_abs(&mut scratch[..n])).max(MIN_SCALE);
         let c = TUKEY * scale;
         let mut a = Matrix3::zeros();
         let mut b = Vector3::zeros();
-        let h = 1e-6;
         for i in 0..n {
             let l = lines(i);
-            let e = residual(&v, lean, &l);
+            let e = residual(&dv, lean, &l);
             let u = e / c;
             if u.abs() >= 1.0 {
                 continue;
             }
             let wt = (1.0 - u * u).powi(2);
-            let dphi = (residual(
-                &Vertical {
-                    phi: v.phi + h,
-                    ..v
-                },
-                lean,
-                &l,
-            ) - residual(
-                &Vertical {
-                    phi: v.phi - h,
-                    ..v
-                },
-                lean,
-                &l,
-            )) / (2.0 * h);
-            let dw = (residual(&Vertical { w: v.w + h, ..v }, lean, &l)
-                - residual(&Vertical { w: v.w - h, ..v }, lean, &l))
-                / (2.0 * h);
+            let dphi = (residual(&phi_p, lean, &l) - residual(&phi_m, lean, &l)) / (2.0 * h);
+            let dw = (residual(&w_p, lean, &l) - residual(&w_m, lean, &l)) / (2.0 * h);
             let dl = if params.lean {
-                let d = v.down_at(l.foot);
+                let d = dv.at(l.foot);
                 -(-d[1] * l.motion[0] + d[0] * l.motion[1])
             } else {
                 0.0
@@ -315,8 +338,9 @@ pub fn fit_vertical(
     }
     let cut = 3.0 * scale;
     let mut inliers = 0;
+    let dv = Down::of(&v);
     for (i, flag) in inlier[..n].iter_mut().enumerate() {
-        *flag = residual(&v, lean, &lines(i)).abs() <= cut;
+        *flag = residual(&dv, lean, &lines(i)).abs() <= cut;
         inliers += usize::from(*flag);
     }
     // Covariance of (φ, w): σ² (JᵀWJ)⁻¹, on the φ–w block.

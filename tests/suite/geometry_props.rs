@@ -125,7 +125,7 @@ proptest! {
         }
         let g = ViewGeometry::of_camera(&cam);
         let inlier = vec![true; obs.len()];
-        let mut scratch = vec![0.0; 2 * obs.len()];
+        let mut scratch = vec![0.0; 3 * obs.len()];
         let fit = fit_horizon(&obs, &track, &inlier, &g, (w.max(ht) / 2) as f64, &mut scratch)
             .expect("two tracks of three");
         prop_assert!((fit.d / g.d - 1.0).abs() < 1e-4, "d {} px vs {} px", fit.d, g.d);
