@@ -74,12 +74,18 @@
 //! the updated weight is above ½ (where `1/w` is computed by one Newton
 //! step, see [`recip_q14`]), in place on the model rows; chunks off their
 //! update phase take a weights-only variant (about a third of the work).
-//! The rest (foreground, new or multi-modal pixels) go through the scalar
-//! [`slow_pixel`]. Both paths give identical results (a test runs the
-//! scalar path everywhere and compares).
+//! A second lane-wise pass ([`batch`], blocks of 8 pixels with at least 4
+//! left over) finishes most of the rest (no mode matches, or a later mode
+//! matches). What remains (sparse leftovers, reorders, empty pixels) goes
+//! through the scalar [`slow_pixel`].
+//! All paths give identical results (a test runs the scalar path
+//! everywhere and compares; `bench/detect.rs --check` does it over the
+//! steady state).
 
 use super::DetectConfig;
 use crate::frame::Frame;
+
+mod batch;
 
 /// Pixels handled per fast-path chunk: one `u64` mask word.
 pub const CHUNK: usize = 64;
@@ -499,6 +505,9 @@ struct Lanes {
     a: [u16; CHUNK],
     ua: [u16; CHUNK],
     tg: [u16; CHUNK],
+    tb: [u16; CHUNK],
+    a_fg: [u16; CHUNK],
+    ua_fg: [u16; CHUNK],
 }
 
 /// The `CHUNK` values of `s` from `at` (callers keep `at + CHUNK ≤ len`).
@@ -701,6 +710,9 @@ impl Background {
             a: [r.a; CHUNK],
             ua: [r.ua; CHUNK],
             tg: [p.tg_sig_q8; CHUNK],
+            tb: [p.tb_sig_q8; CHUNK],
+            a_fg: [r.a_fg; CHUNK],
+            ua_fg: [r.ua_fg; CHUNK],
         });
         for y in 0..ht {
             let xrow = &frame.y[y * wd..(y + 1) * wd];
@@ -736,6 +748,24 @@ impl Background {
                 };
                 let mut bits = 0u64;
                 let mut sbits = 0u64;
+                // The cases the fast path left, in lanes ([`batch`]).
+                if K > 1 && c < full && todo != 0 {
+                    let (xs, ds) = (chunk(xrow, x0), chunk(drow, x0));
+                    let d = if update {
+                        batch::batch_chunk::<K, true>(
+                            xs, wrow, murow, varrow, wd, x0, todo, ds, &p, r, &lanes,
+                        )
+                    } else {
+                        batch::batch_chunk::<K, false>(
+                            xs, wrow, murow, varrow, wd, x0, todo, ds, &p, r, &lanes,
+                        )
+                    };
+                    todo &= !d.done;
+                    bits = d.fg;
+                    sbits = d.shadow;
+                    fg_count += d.fg.count_ones();
+                    shadow += d.shadow.count_ones();
+                }
                 while todo != 0 {
                     let b = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
