@@ -453,7 +453,7 @@ fn fast_chunk<const K: usize, const UPDATE: bool>(
     let (act, a_net) = (r.act, r.a - r.act);
     let (av, uav, tgv) = (&lanes.a, &lanes.ua, &lanes.tg);
     let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
-    let w0 = chunk_mut(wrow, x0);
+    let w0 = chunk_mut::<_, CHUNK>(wrow, x0);
     for i in 0..CHUNK {
         let (m, v, wo, dith) = (i16::from(mu0[i]), i16::from(var0[i]), w0[i], dither[i]);
         // |x − μ| ≤ 255 and its sign s (0 or −1).
@@ -484,7 +484,7 @@ fn fast_chunk<const K: usize, const UPDATE: bool>(
         var0[i] = ((v2 & gm) | (v & !gm)) as u8;
     }
     for k in 1..K {
-        let wk = chunk_mut(wrow, k * wd + x0);
+        let wk = chunk_mut::<_, CHUNK>(wrow, k * wd + x0);
         for i in 0..CHUNK {
             let wo = wk[i];
             wk[i] = if good[i] != 0 {
@@ -510,16 +510,31 @@ struct Lanes {
     ua_fg: [u16; CHUNK],
 }
 
-/// The `CHUNK` values of `s` from `at` (callers keep `at + CHUNK ≤ len`).
+impl Lanes {
+    /// This frame's factors (callers hide the result behind `black_box`).
+    fn new(p: &Params, r: &Rates) -> Self {
+        Lanes {
+            a: [r.a; CHUNK],
+            ua: [r.ua; CHUNK],
+            tg: [p.tg_sig_q8; CHUNK],
+            tb: [p.tb_sig_q8; CHUNK],
+            a_fg: [r.a_fg; CHUNK],
+            ua_fg: [r.ua_fg; CHUNK],
+        }
+    }
+}
+
+/// The `N` values of `s` from `at` (a chunk, or a block of the batch
+/// pass; callers keep `at + N ≤ len`).
 #[inline(always)]
-fn chunk<T>(s: &[T], at: usize) -> &[T; CHUNK] {
-    s[at..at + CHUNK].try_into().expect("chunk inside the row")
+fn chunk<T, const N: usize>(s: &[T], at: usize) -> &[T; N] {
+    s[at..at + N].try_into().expect("chunk inside the row")
 }
 
 /// Mutable [`chunk`].
 #[inline(always)]
-fn chunk_mut<T>(s: &mut [T], at: usize) -> &mut [T; CHUNK] {
-    (&mut s[at..at + CHUNK])
+fn chunk_mut<T, const N: usize>(s: &mut [T], at: usize) -> &mut [T; N] {
+    (&mut s[at..at + N])
         .try_into()
         .expect("chunk inside the row")
 }
@@ -706,14 +721,7 @@ impl Background {
         let mut fg_count = 0u32;
         let mut shadow = 0u32;
         let frame_off = (self.frame as usize).wrapping_mul(2_654_435_761) % DITHER_PERIOD;
-        let lanes = core::hint::black_box(Lanes {
-            a: [r.a; CHUNK],
-            ua: [r.ua; CHUNK],
-            tg: [p.tg_sig_q8; CHUNK],
-            tb: [p.tb_sig_q8; CHUNK],
-            a_fg: [r.a_fg; CHUNK],
-            ua_fg: [r.ua_fg; CHUNK],
-        });
+        let lanes = core::hint::black_box(Lanes::new(&p, r));
         for y in 0..ht {
             let xrow = &frame.y[y * wd..(y + 1) * wd];
             let base = y * K * wd;

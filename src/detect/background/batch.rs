@@ -40,7 +40,10 @@
 //! `pmulhuw` on SSE2, `umull` on NEON). Weights settle at a sum of
 //! `1 − n c_T < 1`; larger sums occur only right after start or relearn.
 
-use super::{decay, grow, mul_dither, mulhi, pack_flags, rho_q16, Lanes, Params, Rates, CHUNK};
+use super::{
+    chunk, chunk_mut, decay, grow, mul_dither, mulhi, pack_flags, rho_q16, Lanes, Params, Rates,
+    CHUNK,
+};
 
 /// Fewest slow pixels in a block for which the block pays (measured at
 /// 1280×720: 3, 4, 5 gave 36.2 / 35.8 / 35.7 instr/px in start-up and
@@ -134,9 +137,9 @@ fn block<const K: usize, const UPDATE: bool>(
     let (lo, hi) = (p.shadow_lo_q8 as u16, p.shadow_hi_q8 as u16);
     let shadow_on = mask(p.shadow);
     let (tgv, tbv, av, afv) = (&lanes.tg, &lanes.tb, &lanes.a, &lanes.a_fg);
-    let w: [[u16; LANES]; K] = core::array::from_fn(|k| *lane_block(wrow, k * wd + at));
-    let mu: [[u8; LANES]; K] = core::array::from_fn(|k| *lane_block(murow, k * wd + at));
-    let var: [[u8; LANES]; K] = core::array::from_fn(|k| *lane_block(varrow, k * wd + at));
+    let w: [[u16; LANES]; K] = core::array::from_fn(|k| *chunk::<_, LANES>(wrow, k * wd + at));
+    let mu: [[u8; LANES]; K] = core::array::from_fn(|k| *chunk::<_, LANES>(murow, k * wd + at));
+    let var: [[u8; LANES]; K] = core::array::from_fn(|k| *chunk::<_, LANES>(varrow, k * wd + at));
     // Written as whole-array steps, one simple loop each: the vectoriser
     // turned the same work down as one loop body.
     //
@@ -283,7 +286,7 @@ fn block<const K: usize, const UPDATE: bool>(
         shf[i] = (t & shm[i] & 1) as u8;
     }
     for k in 0..K {
-        let wk = lane_block_mut(wrow, k * wd + at);
+        let wk = chunk_mut::<_, LANES>(wrow, k * wd + at);
         // Selects, not conditional stores (no masked stores in SSE2).
         for i in 0..LANES {
             wk[i] = (nw[k][i] & take[i]) | (w[k][i] & !take[i]);
@@ -301,11 +304,11 @@ fn block<const K: usize, const UPDATE: bool>(
                 0
             };
         }
-        let mk = lane_block_mut(murow, k * wd + at);
+        let mk = chunk_mut::<_, LANES>(murow, k * wd + at);
         for i in 0..LANES {
             mk[i] = (x[i] & nb[i]) | (nmu[k][i] & nh[i]) | (mu[k][i] & !(nb[i] | nh[i]));
         }
-        let vk = lane_block_mut(varrow, k * wd + at);
+        let vk = chunk_mut::<_, LANES>(varrow, k * wd + at);
         for i in 0..LANES {
             vk[i] = (var_init & nb[i]) | (nvar[k][i] & nh[i]) | (var[k][i] & !(nb[i] | nh[i]));
         }
@@ -315,20 +318,6 @@ fn block<const K: usize, const UPDATE: bool>(
         pack_flags(&fgf) as u8,
         pack_flags(&shf) as u8,
     )
-}
-
-/// The [`LANES`] values of `s` from `at` (callers keep `at + LANES ≤ len`).
-#[inline(always)]
-fn lane_block<T>(s: &[T], at: usize) -> &[T; LANES] {
-    s[at..at + LANES].try_into().expect("block inside the row")
-}
-
-/// Mutable [`lane_block`].
-#[inline(always)]
-fn lane_block_mut<T>(s: &mut [T], at: usize) -> &mut [T; LANES] {
-    (&mut s[at..at + LANES])
-        .try_into()
-        .expect("block inside the row")
 }
 
 /// `0xFFFF` for true, 0 for false (a lane mask).
@@ -350,14 +339,7 @@ mod tests {
     fn agrees<const K: usize, const UPDATE: bool>(frames: u32) {
         let p = Params::from_config(&DetectConfig::default());
         let r = Rates::new(&p, frames);
-        let lanes = Lanes {
-            a: [r.a; CHUNK],
-            ua: [r.ua; CHUNK],
-            tg: [p.tg_sig_q8; CHUNK],
-            tb: [p.tb_sig_q8; CHUNK],
-            a_fg: [r.a_fg; CHUNK],
-            ua_fg: [r.ua_fg; CHUNK],
-        };
+        let lanes = Lanes::new(&p, &r);
         let mut s: u32 = 12345;
         let mut rnd = |n: u32| {
             s ^= s << 13;
