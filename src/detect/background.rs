@@ -74,12 +74,18 @@
 //! the updated weight is above ½ (where `1/w` is computed by one Newton
 //! step, see [`recip_q14`]), in place on the model rows; chunks off their
 //! update phase take a weights-only variant (about a third of the work).
-//! The rest (foreground, new or multi-modal pixels) go through the scalar
-//! [`slow_pixel`]. Both paths give identical results (a test runs the
-//! scalar path everywhere and compares).
+//! A second lane-wise pass ([`batch`], blocks of 8 pixels with at least 4
+//! left over) finishes most of the rest (no mode matches, or a later mode
+//! matches). What remains (sparse leftovers, reorders, empty pixels) goes
+//! through the scalar [`slow_pixel`].
+//! All paths give identical results (a test runs the scalar path
+//! everywhere and compares; `bench/detect.rs --check` does it over the
+//! steady state).
 
 use super::DetectConfig;
 use crate::frame::Frame;
+
+mod batch;
 
 /// Pixels handled per fast-path chunk: one `u64` mask word.
 pub const CHUNK: usize = 64;
@@ -447,7 +453,7 @@ fn fast_chunk<const K: usize, const UPDATE: bool>(
     let (act, a_net) = (r.act, r.a - r.act);
     let (av, uav, tgv) = (&lanes.a, &lanes.ua, &lanes.tg);
     let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
-    let w0 = chunk_mut(wrow, x0);
+    let w0 = chunk_mut::<_, CHUNK>(wrow, x0);
     for i in 0..CHUNK {
         let (m, v, wo, dith) = (i16::from(mu0[i]), i16::from(var0[i]), w0[i], dither[i]);
         // |x − μ| ≤ 255 and its sign s (0 or −1).
@@ -478,7 +484,7 @@ fn fast_chunk<const K: usize, const UPDATE: bool>(
         var0[i] = ((v2 & gm) | (v & !gm)) as u8;
     }
     for k in 1..K {
-        let wk = chunk_mut(wrow, k * wd + x0);
+        let wk = chunk_mut::<_, CHUNK>(wrow, k * wd + x0);
         for i in 0..CHUNK {
             let wo = wk[i];
             wk[i] = if good[i] != 0 {
@@ -499,18 +505,36 @@ struct Lanes {
     a: [u16; CHUNK],
     ua: [u16; CHUNK],
     tg: [u16; CHUNK],
+    tb: [u16; CHUNK],
+    a_fg: [u16; CHUNK],
+    ua_fg: [u16; CHUNK],
 }
 
-/// The `CHUNK` values of `s` from `at` (callers keep `at + CHUNK ≤ len`).
+impl Lanes {
+    /// This frame's factors (callers hide the result behind `black_box`).
+    fn new(p: &Params, r: &Rates) -> Self {
+        Lanes {
+            a: [r.a; CHUNK],
+            ua: [r.ua; CHUNK],
+            tg: [p.tg_sig_q8; CHUNK],
+            tb: [p.tb_sig_q8; CHUNK],
+            a_fg: [r.a_fg; CHUNK],
+            ua_fg: [r.ua_fg; CHUNK],
+        }
+    }
+}
+
+/// The `N` values of `s` from `at` (a chunk, or a block of the batch
+/// pass; callers keep `at + N ≤ len`).
 #[inline(always)]
-fn chunk<T>(s: &[T], at: usize) -> &[T; CHUNK] {
-    s[at..at + CHUNK].try_into().expect("chunk inside the row")
+fn chunk<T, const N: usize>(s: &[T], at: usize) -> &[T; N] {
+    s[at..at + N].try_into().expect("chunk inside the row")
 }
 
 /// Mutable [`chunk`].
 #[inline(always)]
-fn chunk_mut<T>(s: &mut [T], at: usize) -> &mut [T; CHUNK] {
-    (&mut s[at..at + CHUNK])
+fn chunk_mut<T, const N: usize>(s: &mut [T], at: usize) -> &mut [T; N] {
+    (&mut s[at..at + N])
         .try_into()
         .expect("chunk inside the row")
 }
@@ -697,11 +721,7 @@ impl Background {
         let mut fg_count = 0u32;
         let mut shadow = 0u32;
         let frame_off = (self.frame as usize).wrapping_mul(2_654_435_761) % DITHER_PERIOD;
-        let lanes = core::hint::black_box(Lanes {
-            a: [r.a; CHUNK],
-            ua: [r.ua; CHUNK],
-            tg: [p.tg_sig_q8; CHUNK],
-        });
+        let lanes = core::hint::black_box(Lanes::new(&p, r));
         for y in 0..ht {
             let xrow = &frame.y[y * wd..(y + 1) * wd];
             let base = y * K * wd;
@@ -736,6 +756,24 @@ impl Background {
                 };
                 let mut bits = 0u64;
                 let mut sbits = 0u64;
+                // The cases the fast path left, in lanes ([`batch`]).
+                if K > 1 && c < full && todo != 0 {
+                    let (xs, ds) = (chunk(xrow, x0), chunk(drow, x0));
+                    let d = if update {
+                        batch::batch_chunk::<K, true>(
+                            xs, wrow, murow, varrow, wd, x0, todo, ds, &p, r, &lanes,
+                        )
+                    } else {
+                        batch::batch_chunk::<K, false>(
+                            xs, wrow, murow, varrow, wd, x0, todo, ds, &p, r, &lanes,
+                        )
+                    };
+                    todo &= !d.done;
+                    bits = d.fg;
+                    sbits = d.shadow;
+                    fg_count += d.fg.count_ones();
+                    shadow += d.shadow.count_ones();
+                }
                 while todo != 0 {
                     let b = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
