@@ -74,7 +74,7 @@
 //! the updated weight is above ½ (where `1/w` is computed by one Newton
 //! step, see [`recip_q14`]), in place on the model rows; chunks off their
 //! update phase take a weights-only variant (about a third of the work).
-//! A second lane-wise pass ([`batch`], blocks of 8 pixels with at least 4
+//! A second lane-wise pass (`background/batch.rs`, blocks of 8 pixels with at least 4
 //! left over) finishes most of the rest (no mode matches, or a later mode
 //! matches). What remains (sparse leftovers, reorders, empty pixels) goes
 //! through the scalar [`slow_pixel`].
