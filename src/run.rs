@@ -240,8 +240,8 @@ impl Pipeline {
             // seen, where its head/foot points were taken.
             let at = if t.ended { t.last_seen } else { frame };
             let h = height_record(at, t.id, &c, &t.last, &t.seen_box, t.ended);
-            if t.ended && self.final_heights.len() < FINAL_HEIGHTS_KEPT {
-                self.final_heights.push(h.clone());
+            if t.ended {
+                keep_final(&mut self.final_heights, &h);
             }
             let rec = Record::Height(h);
             st.run(Stage::Report, || reporter.send(rec));
@@ -259,9 +259,7 @@ impl Pipeline {
                     return;
                 };
                 let h = height_record(p.last_seen, p.id, &c, &p.last, &p.seen_box, true);
-                if finals.len() < FINAL_HEIGHTS_KEPT {
-                    finals.push(h.clone());
-                }
+                keep_final(finals, &h);
                 reporter.send(Record::Height(h));
                 measured += 1;
             });
@@ -329,6 +327,14 @@ impl Pipeline {
     /// People tracked now.
     pub fn tracks(&self) -> u32 {
         self.tracker.live()
+    }
+}
+
+/// Keeps a copy of final height `h` for the run's summary while there is
+/// room (the first [`FINAL_HEIGHTS_KEPT`]; every one is reported anyway).
+fn keep_final(finals: &mut Vec<Height>, h: &Height) {
+    if finals.len() < FINAL_HEIGHTS_KEPT {
+        finals.push(h.clone());
     }
 }
 
