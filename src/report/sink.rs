@@ -96,7 +96,7 @@ pub enum Sink {
     /// A connected-less UDP socket and its destination.
     Udp(UdpSocket, SocketAddr),
     /// A serial port.
-    Serial(Box<dyn serialport::SerialPort>),
+    Serial(SerialSink),
     /// An MQTT broker, served by its own connection thread.
     #[cfg(feature = "mqtt")]
     Mqtt(Box<super::mqtt::link::MqttSink>),
@@ -121,6 +121,18 @@ impl FileSink {
     }
 }
 
+/// A serial port, written one record per `write` call.
+///
+/// A write that times out (the far end stopped reading, or flow control
+/// holds the line) may have sent part of a record; like [`FileSink`], the
+/// next record first closes that fragment, so the reader loses one record,
+/// not two.
+pub struct SerialSink {
+    port: Box<dyn serialport::SerialPort>,
+    /// The last write failed part-way: the line may end in a fragment.
+    torn: bool,
+}
+
 /// Writes one encoded record; `torn` says the previous write failed
 /// part-way and may have left a fragment at the end of the output.
 fn write_after_fragment<W: Write>(w: &mut W, torn: &mut bool, bytes: &[u8]) -> io::Result<()> {
@@ -131,7 +143,25 @@ fn write_after_fragment<W: Write>(w: &mut W, torn: &mut bool, bytes: &[u8]) -> i
         w.write_all(&bytes[bytes.len().saturating_sub(1)..])?;
         *torn = false;
     }
-    w.write_all(bytes).inspect_err(|_| *torn = true)
+    // `write_all` does not say how far it got: a write that failed before
+    // its first byte (a full disk, a serial line that timed out) leaves no
+    // fragment, and closing one there would put an empty record in the stream.
+    let mut sent = 0;
+    while sent < bytes.len() {
+        match w.write(&bytes[sent..]) {
+            Ok(0) => {
+                *torn = sent > 0;
+                return Err(io::ErrorKind::WriteZero.into());
+            }
+            Ok(n) => sent += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => {
+                *torn = sent > 0;
+                return Err(e);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// How long a serial write may block before the record is dropped.
@@ -191,7 +221,7 @@ impl Sink {
                             format!("serial port `{path}`: {e}"),
                         )
                     })?;
-                Sink::Serial(port)
+                Sink::Serial(SerialSink { port, torn: false })
             }
             SinkSpec::Mqtt(m) => {
                 let settings = MqttSettings::resolve(m, mqtt, |k| std::env::var(k).ok());
@@ -261,7 +291,7 @@ impl Sink {
             }
             Sink::File(f) => f.write(bytes),
             Sink::Udp(sock, dest) => sock.send_to(bytes, *dest).map(|_| ()),
-            Sink::Serial(port) => port.write_all(bytes),
+            Sink::Serial(s) => write_after_fragment(&mut s.port, &mut s.torn, bytes),
             #[cfg(feature = "mqtt")]
             Sink::Mqtt(_) => Err(io::Error::new(
                 io::ErrorKind::InvalidInput,
@@ -273,7 +303,7 @@ impl Sink {
     /// Flushes buffered output (called when the queue runs empty).
     pub fn flush(&mut self) -> io::Result<()> {
         match self {
-            Sink::Serial(p) => p.flush(),
+            Sink::Serial(s) => s.port.flush(),
             _ => Ok(()),
         }
     }
@@ -341,6 +371,21 @@ mod tests {
             ]
         );
     }
+    #[test]
+    fn a_record_refused_whole_leaves_no_empty_record() {
+        let mut disk = FullDisk {
+            data: Vec::new(),
+            room: 0,
+        };
+        let mut torn = false;
+        let rec = |n: u32| format!("{{\"type\":\"bye\",\"frame\":{n}}}\n");
+        assert!(write_after_fragment(&mut disk, &mut torn, rec(1).as_bytes()).is_err());
+        assert!(!torn, "nothing of record 1 went out");
+        disk.room = 1000;
+        write_after_fragment(&mut disk, &mut torn, rec(2).as_bytes()).unwrap();
+        assert_eq!(String::from_utf8(disk.data).unwrap(), rec(2));
+    }
+
     use super::*;
 
     #[test]
