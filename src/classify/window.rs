@@ -189,7 +189,7 @@ impl Sampler {
     /// pixel is `(v_a·(256 − fx) + v_{a+1}·fx + 2^15) >> 16` (at most
     /// 255·2^16, rounding to nearest). That is the same integer as the
     /// four-tap form, which is kept for windows reading more than
-    /// [`SPAN`] source columns. Returns `false` (and leaves `out` alone)
+    /// `SPAN` (2,048) source columns. Returns `false` (and leaves `out` alone)
     /// for a plane under 2×2 pixels or a short `out`.
     pub fn sample(&mut self, luma: Plane<'_>, rect: &WindowRect, out: &mut [u8]) -> bool {
         if luma.width < 2 || luma.height < 2 || out.len() < self.len() {

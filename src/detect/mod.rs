@@ -309,7 +309,8 @@ pub struct Region {
     /// straight image column by construction, not the person's outline,
     /// so its silhouette axis leans toward the image vertical.
     pub split: bool,
-    /// Its run-length mask: indices into [`RegionSet::runs`], sorted by row.
+    /// Its run-length mask: indices into its set's run store, sorted by
+    /// row (read them with [`RegionSet::runs_of`]).
     pub runs: core::ops::Range<u32>,
 }
 
