@@ -349,13 +349,24 @@ fn height_record(
     is_final: bool,
 ) -> Height {
     let b = seen_box;
+    // The points' columns come from the silhouette's axis; on a region the
+    // image border cuts (never a sample, but it can be the last one seen)
+    // the axis can run out of the image, so they are kept within the box's
+    // columns. Rows stay: the refined head and foot rows may lie a few rows
+    // beyond the box (`detect.refine_extremes`).
+    let inside = |p: [f64; 2]| {
+        [
+            (p[0] as f32).clamp(f32::from(b.x0), f32::from(b.x1)),
+            p[1] as f32,
+        ]
+    };
     Height {
         frame,
         track_id: id,
         height_m: c.height as f32,
         samples: c.samples,
-        foot_px: [last.foot[0] as f32, last.foot[1] as f32],
-        head_px: [last.head[0] as f32, last.head[1] as f32],
+        foot_px: inside(last.foot),
+        head_px: inside(last.head),
         bbox: [b.x0, b.y0, b.x1, b.y1],
         is_final,
     }

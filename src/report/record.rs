@@ -66,9 +66,9 @@ pub struct Height {
     pub height_m: f32,
     /// Per-frame measurements behind it.
     pub samples: u32,
-    /// Foot point `[u, v]`, pixels.
+    /// Foot point `[u, v]`, pixels (its column within `bbox`).
     pub foot_px: [f32; 2],
-    /// Head point `[u, v]`, pixels.
+    /// Head point `[u, v]`, pixels (its column within `bbox`).
     pub head_px: [f32; 2],
     /// Inclusive box `[x0, y0, x1, y1]`.
     pub bbox: [u16; 4],

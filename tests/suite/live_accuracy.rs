@@ -37,9 +37,9 @@ fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: 
     assert!(h.abs_median <= max_height, "{scene}: heights {h:?}");
     assert_eq!(h.non_person, 0, "{scene}: a dog or car was measured: {h:?}");
     // A final record's box is where its head and foot were seen: inside
-    // the image, around the foot point (a coasting track's box drifts
-    // away). The foot may lie a little outside the region's box: its
-    // column is on the body axis, its row gets back what the opening took.
+    // the image, around both points (a coasting track's box drifts away).
+    // Their columns lie within the box, their rows may lie a little beyond
+    // it: they get back what the opening took from crowns and ankles.
     let (w, hgt) = (r.scene.width as f32, r.scene.height as f32);
     for f in &r.final_heights {
         let b = f.bbox.map(f32::from);
@@ -48,11 +48,12 @@ fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: 
             b[2] < w && b[3] < hgt,
             "{scene}: box outside the image: {f:?}"
         );
-        assert!(
-            (b[0] - tol..=b[2] + tol).contains(&f.foot_px[0])
-                && (b[1]..=b[3] + tol).contains(&f.foot_px[1]),
-            "{scene}: box away from its foot point: {f:?}"
-        );
+        for (p, what) in [(f.foot_px, "foot"), (f.head_px, "head")] {
+            assert!(
+                (b[0]..=b[2]).contains(&p[0]) && (b[1] - tol..=b[3] + tol).contains(&p[1]),
+                "{scene}: box away from its {what} point: {f:?}"
+            );
+        }
     }
     assert!(
         h.measured * 2 >= h.eligible,
