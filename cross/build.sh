@@ -15,9 +15,14 @@ if [[ ${#targets[@]} -eq 0 ]]; then
     targets=(aarch64-unknown-linux-gnu armv7-unknown-linux-gnueabihf aarch64-unknown-linux-musl)
 fi
 target_dir=${CARGO_TARGET_DIR:-target}
+# One cargo run for every target: one job queue, so while one target's
+# `stature` crate compiles or links (long single-threaded steps) the other
+# core builds another target, instead of idling through three runs in turn.
+target_args=()
+for t in "${targets[@]}"; do target_args+=(--target "$t"); done
+echo "cross/build.sh: ${targets[*]}"
+cargo build --release --locked --features v4l2 "${target_args[@]}" --bin stature
 for t in "${targets[@]}"; do
-    echo "cross/build.sh: $t"
-    cargo build --release --locked --features v4l2 --target "$t" --bin stature
     bin=$target_dir/$t/release/stature
     # Size as shipped: the release profile keeps line tables (debug = 1) for
     # backtraces; `strip` drops them for the board if space is tight.
