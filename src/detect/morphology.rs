@@ -186,6 +186,35 @@ pub fn open(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
     dilate(m, tmp, rx, ry);
 }
 
+/// The union of two openings of `m`: by the `(2r+1)²` square and by a
+/// vertical line of `2v + 1` pixels (`v = 0`: the square alone; `r = 0`:
+/// no opening). A pixel stays if the square fits around it or the line
+/// does. Distant people's legs and hanging arms are one or two pixels
+/// wide, thinner than the square, but upright; sensor and compression
+/// specks, and the thin bridges that join two people walking side by
+/// side, are neither. `vertical` and `tmp` are scratch of the same size.
+pub fn open_keeping_vertical(
+    m: &mut BitMask,
+    vertical: &mut BitMask,
+    tmp: &mut BitMask,
+    r: u32,
+    v: u32,
+) {
+    if r == 0 {
+        return;
+    }
+    if v > 0 {
+        vertical.copy_from(m);
+        open(vertical, tmp, 0, v);
+    }
+    open(m, tmp, r, r);
+    if v > 0 {
+        for (w, &k) in m.words.iter_mut().zip(vertical.words.iter()) {
+            *w |= k;
+        }
+    }
+}
+
 /// Closing (dilate then erode): fills holes and gaps narrower than the rectangle.
 pub fn close(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
     dilate(m, tmp, rx, ry);
@@ -285,6 +314,87 @@ mod tests {
             assert_eq!(m.get(3, y), (2..=8).contains(&y), "col 3 row {y}");
             assert_eq!(m.get(66, y), y == 2, "col 66 row {y}");
             assert_eq!(m.get(40, y), y == 2 || y == 15, "col 40 row {y}");
+        }
+    }
+
+    /// A two-pixel leg hanging from a body survives; a speck and a
+    /// one-row bridge between two bodies do not; the square alone would
+    /// have taken the leg too.
+    #[test]
+    fn opening_keeps_thin_upright_limbs_only() {
+        let (w, h) = (80, 30);
+        let mut m = BitMask::new(w, h);
+        let fill = |m: &mut BitMask, x0: usize, x1: usize, y0: usize, y1: usize| {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    m.set(x, y, true);
+                }
+            }
+        };
+        fill(&mut m, 10, 20, 2, 14); // body
+        fill(&mut m, 13, 15, 14, 24); // leg, 2 px wide, 10 tall
+        fill(&mut m, 40, 50, 2, 14); // a second body
+        fill(&mut m, 20, 40, 8, 9); // one-row bridge between them
+        fill(&mut m, 60, 62, 20, 22); // 2x2 speck
+        fill(&mut m, 70, 72, 20, 23); // 2x3 speck: shorter than the line
+        let (mut v, mut tmp) = (BitMask::new(w, h), BitMask::new(w, h));
+        let mut square = BitMask::new(w, h);
+        square.copy_from(&m);
+        open_keeping_vertical(&mut square, &mut v, &mut tmp, 1, 0);
+        open_keeping_vertical(&mut m, &mut v, &mut tmp, 1, 2);
+        for y in 14..24 {
+            assert!(m.get(13, y) && m.get(14, y), "leg row {y}");
+            assert!(!square.get(13, y), "the square alone takes the leg");
+        }
+        for x in 21..39 {
+            assert!(!m.get(x, 8), "bridge column {x}");
+        }
+        assert_eq!(m.count(), 10 * 12 * 2 + 2 * 10, "bodies and leg only");
+    }
+
+    /// The union of openings equals the byte reference of both openings.
+    #[test]
+    fn opening_keeping_vertical_matches_byte_reference() {
+        let mut s: u32 = 11;
+        for &(w, h) in &[(70, 20), (130, 9), (64, 33)] {
+            let px: Vec<bool> = (0..w * h)
+                .map(|_| {
+                    s ^= s << 13;
+                    s ^= s >> 17;
+                    s ^= s << 5;
+                    s % 16 < 10
+                })
+                .collect();
+            let open_ref = |rx: i64, ry: i64| {
+                let e = reference(&px, w, h, rx, ry, true);
+                reference(&e, w, h, rx, ry, false)
+            };
+            for (r, v) in [(1u32, 1u32), (1, 2), (2, 3), (1, 0)] {
+                let mut m = BitMask::new(w, h);
+                for y in 0..h {
+                    for x in 0..w {
+                        m.set(x, y, px[y * w + x]);
+                    }
+                }
+                let (mut vm, mut tmp) = (BitMask::new(w, h), BitMask::new(w, h));
+                open_keeping_vertical(&mut m, &mut vm, &mut tmp, r, v);
+                let sq = open_ref(i64::from(r), i64::from(r));
+                let line = if v > 0 {
+                    open_ref(0, i64::from(v))
+                } else {
+                    vec![false; w * h]
+                };
+                for y in 0..h {
+                    for x in 0..w {
+                        let i = y * w + x;
+                        assert_eq!(
+                            m.get(x, y),
+                            sq[i] || line[i],
+                            "{w}x{h} r={r} v={v} ({x},{y})"
+                        );
+                    }
+                }
+            }
         }
     }
 
