@@ -221,8 +221,8 @@ fn block<const K: usize, const UPDATE: bool>(
     // Update chunks: the matched mode's mean and variance move by
     // `ρ = Nα/w` (post-update weight), dithered, exactly as in
     // `slow_pixel` (and in the same lane form as `fast_chunk`). `ρ` is
-    // per lane, scalar (a division below ½); no match leaves `wm = 0`,
-    // whose `ρ` is computed and discarded.
+    // per lane, scalar (a division below ½); no match leaves `wm = 0`
+    // and `ρ = 0` (the step is discarded).
     let mut nmu = [[0u8; LANES]; K];
     let mut nvar = [[0u8; LANES]; K];
     let mut wm = [0u16; LANES];
@@ -236,7 +236,11 @@ fn block<const K: usize, const UPDATE: bool>(
     if UPDATE && wm != [0; LANES] {
         let mut rho = [0u16; LANES];
         for i in 0..LANES {
-            rho[i] = rho_q16(ua[i], wm[i]);
+            // Matched lanes only: the others' `ρ` is discarded (and costs a
+            // division each, below ½).
+            if wm[i] != 0 {
+                rho[i] = rho_q16(ua[i], wm[i]);
+            }
         }
         let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
         for k in 0..K {
