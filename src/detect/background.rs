@@ -522,6 +522,10 @@ struct Lanes {
     ua: [u16; CHUNK],
     tg: [u16; CHUNK],
     tb: [u16; CHUNK],
+    /// `T_B` (Q0.16) and `c_f = 2¹⁶ − T_B` (≤ 2¹⁵, `T_B ≥ ½` by config),
+    /// for the batch pass's background walk.
+    tb_w: [u16; CHUNK],
+    cf_w: [u16; CHUNK],
     a_fg: [u16; CHUNK],
     ua_fg: [u16; CHUNK],
 }
@@ -534,6 +538,8 @@ impl Lanes {
             ua: [r.ua; CHUNK],
             tg: [p.tg_sig_q8; CHUNK],
             tb: [p.tb_sig_q8; CHUNK],
+            tb_w: [p.tb_q16 as u16; CHUNK],
+            cf_w: [(65536 - p.tb_q16) as u16; CHUNK],
             a_fg: [r.a_fg; CHUNK],
             ua_fg: [r.ua_fg; CHUNK],
         }
