@@ -783,34 +783,11 @@ impl Background {
                         chunk_mut(varrow, x0),
                         chunk(drow, x0),
                     );
+                    let sc = &mut scratch;
                     if update {
-                        fast_chunk::<K, true>(
-                            xs,
-                            wrow,
-                            wd,
-                            x0,
-                            ms,
-                            vs,
-                            ds,
-                            &p,
-                            r,
-                            &lanes,
-                            &mut scratch,
-                        )
+                        fast_chunk::<K, true>(xs, wrow, wd, x0, ms, vs, ds, &p, r, &lanes, sc)
                     } else {
-                        fast_chunk::<K, false>(
-                            xs,
-                            wrow,
-                            wd,
-                            x0,
-                            ms,
-                            vs,
-                            ds,
-                            &p,
-                            r,
-                            &lanes,
-                            &mut scratch,
-                        )
+                        fast_chunk::<K, false>(xs, wrow, wd, x0, ms, vs, ds, &p, r, &lanes, sc)
                     }
                 } else if x1 - x0 == CHUNK {
                     u64::MAX
