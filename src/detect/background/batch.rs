@@ -132,7 +132,9 @@ fn block<const K: usize, const UPDATE: bool>(
 ) -> (u8, u8, u8) {
     let var_init = p.var_init;
     // c_f = 2¹⁶ − T_B ≤ 2¹⁵ (T_B ≥ ½), T_B < 2¹⁶: both fit u16.
-    let (cf, tb) = ((65536 - p.tb_q16) as u16, p.tb_q16 as u16);
+    // As lanes the optimiser cannot see through: a known splat made LLVM
+    // widen `C_k · c_f` to `pmuludq` on 32-bit lanes.
+    let (cfv, tbv_w) = (&lanes.cf_w, &lanes.tb_w);
     // Shadow ratios in Q8.8, ≤ 1.0: `ratio · μ ≤ 65280` fits u16.
     let (lo, hi) = (p.shadow_lo_q8 as u16, p.shadow_hi_q8 as u16);
     let shadow_on = mask(p.shadow);
@@ -152,7 +154,9 @@ fn block<const K: usize, const UPDATE: bool>(
         for i in 0..LANES {
             let (xv, m, v) = (u16::from(x[i]), u16::from(mu[k][i]), u16::from(var[k][i]));
             let alive = w[k][i] != 0;
-            let ad = xv.abs_diff(m).min(63);
+            // On bytes, then widened (`pminub`/`pmaxub`; on u16 lanes it
+            // took a compare and a select).
+            let ad = u16::from(x[i].abs_diff(mu[k][i])).min(63);
             // Below 2¹⁵ both: signed compares (see fast_chunk).
             let d2 = (2 * ad * ad) as i16;
             mg[k][i] = mask(alive & (d2 < mulhi(v << 8, tgv[i]) as i16));
@@ -183,7 +187,8 @@ fn block<const K: usize, const UPDATE: bool>(
             let el = if k == 0 {
                 0xFFFF
             } else {
-                mask(u32::from(c) * u32::from(cf) < u32::from(tb) * u32::from(s[i].wrapping_sub(c)))
+                let r = s[i].wrapping_sub(c);
+                mask(u32::from(c) * u32::from(cfv[i]) < u32::from(tbv_w[i]) * u32::from(r))
             };
             bg[i] |= el & walk[i] & mb[k][i];
             sh[i] |= el & band[k][i];
@@ -221,8 +226,8 @@ fn block<const K: usize, const UPDATE: bool>(
     // Update chunks: the matched mode's mean and variance move by
     // `ρ = Nα/w` (post-update weight), dithered, exactly as in
     // `slow_pixel` (and in the same lane form as `fast_chunk`). `ρ` is
-    // per lane, scalar (a division below ½); no match leaves `wm = 0`,
-    // whose `ρ` is computed and discarded.
+    // per lane, scalar (a division below ½); no match leaves `wm = 0`
+    // and `ρ = 0` (the step is discarded).
     let mut nmu = [[0u8; LANES]; K];
     let mut nvar = [[0u8; LANES]; K];
     let mut wm = [0u16; LANES];
@@ -236,7 +241,11 @@ fn block<const K: usize, const UPDATE: bool>(
     if UPDATE && wm != [0; LANES] {
         let mut rho = [0u16; LANES];
         for i in 0..LANES {
-            rho[i] = rho_q16(ua[i], wm[i]);
+            // Matched lanes only: the others' `ρ` is discarded (and costs a
+            // division each, below ½).
+            if wm[i] != 0 {
+                rho[i] = rho_q16(ua[i], wm[i]);
+            }
         }
         let (vlo, vhi) = (i16::from(p.var_min), i16::from(p.var_max));
         for k in 0..K {
