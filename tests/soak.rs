@@ -1,7 +1,8 @@
 //! A long run of the whole pipeline on the simulated scene: no allocation
 //! after warm-up, flat memory, no dropped records, bounded tables.
 //! CI runs `SOAK_FRAMES` (default 20,000) frames; the 100,000-frame run in
-//! bench/RESULTS.md ("Soak") is this test with `SOAK_FRAMES=100000`.
+//! bench/RESULTS.md ("Soak") is this test with `SOAK_FRAMES=100000`. Under
+//! qemu-user `SOAK_RSS_SLACK_KIB` loosens the RSS bound (see the test).
 
 use stature::alloc_count::{allocations, thread_allocations, CountingAlloc};
 use stature::config::Config;
@@ -29,6 +30,16 @@ fn long_run_is_allocation_free_flat_and_loses_nothing() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(20_000);
+    // RSS growth allowed after warm-up. Natively the process's pages are
+    // the program's, and a few hundred KiB of page-cache noise is all
+    // there is. Under qemu-user (cross/test.sh) the RSS is qemu's: it also
+    // holds the translated-code cache, which grows whenever a code path
+    // runs for the first time after warm-up (measured: +2.1 MiB on
+    // aarch64 with 0 allocations), so the emulated run allows more.
+    let rss_slack_kib: u64 = std::env::var("SOAK_RSS_SLACK_KIB")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(512);
     let uri = format!("sim:plaza?seed=11&frames={frames}");
     let mut src = source::open(&uri).expect("the simulated scene");
     let cfg = Config::default();
@@ -106,10 +117,10 @@ fn long_run_is_allocation_free_flat_and_loses_nothing() {
         0,
         "records dropped with a consumer keeping up"
     );
-    // Flat memory: allow page-cache noise of a few hundred KiB, no growth with time.
+    // Flat memory: allow page-cache noise (see `rss_slack_kib`), no growth with time.
     assert!(
-        rss_peak_after_warm_up.max(rss_end) <= rss_start + 512,
-        "RSS grew from {rss_start} KiB to {} KiB",
+        rss_peak_after_warm_up.max(rss_end) <= rss_start + rss_slack_kib,
+        "RSS grew from {rss_start} KiB to {} KiB (allowed: +{rss_slack_kib} KiB)",
         rss_peak_after_warm_up.max(rss_end)
     );
 }
