@@ -75,13 +75,7 @@ impl PendingPool {
     pub fn park(&mut self, track: &Track) -> Option<PendingTrack> {
         let parked = PendingTrack {
             id: track.id,
-            samples: {
-                let mut s = HistoryBuffer::new();
-                for o in track.sample_iter() {
-                    s.write(*o);
-                }
-                s
-            },
+            samples: track.samples.clone(),
             last: track.last,
             last_seen: track.last_seen,
             seen_box: track.seen_box,
