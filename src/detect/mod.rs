@@ -448,7 +448,12 @@ impl Detector {
             before_open: BitMask::new(size.width, size.height),
             refine_extremes: cfg.refine_extremes && cfg.open_radius > 0,
             scratch: BitMask::new(size.width, size.height),
-            vertical: BitMask::new(size.width, size.height),
+            // Only the vertical opening uses it: empty while that is off.
+            vertical: if cfg.open_vertical_radius > 0 {
+                BitMask::new(size.width, size.height)
+            } else {
+                BitMask::new(0, 0)
+            },
             labeller: {
                 let mut l = Labeller::new(cfg.run_capacity(size), size.width);
                 l.set_split(cfg.split_valley);
