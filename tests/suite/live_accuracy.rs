@@ -48,9 +48,13 @@ fn check(scene: &str, max_focal: f64, max_tilt: f64, max_roll: f64, max_height: 
             b[2] < w && b[3] < hgt,
             "{scene}: box outside the image: {f:?}"
         );
-        for (p, what) in [(f.foot_px, "foot"), (f.head_px, "head")] {
+        // The foot may lie below the box, the head above it.
+        for (p, rows, what) in [
+            (f.foot_px, b[1]..=b[3] + tol, "foot"),
+            (f.head_px, b[1] - tol..=b[3], "head"),
+        ] {
             assert!(
-                (b[0]..=b[2]).contains(&p[0]) && (b[1] - tol..=b[3] + tol).contains(&p[1]),
+                (b[0]..=b[2]).contains(&p[0]) && rows.contains(&p[1]),
                 "{scene}: box away from its {what} point: {f:?}"
             );
         }
