@@ -637,15 +637,14 @@ mod tests {
                     solids_of(p, &spec, &proj, &mut solids);
                 }
                 solids_seen += solids.len();
-                for seed in [1u64, 7] {
-                    let fast = render_culled(&spec, &proj, seed, true);
-                    let slow = render_culled(&spec, &proj, seed, false);
-                    let at = format!("{} shadows={shadows} seed={seed}", spec.name);
-                    assert!(fast.y == slow.y, "luma differs: {at}");
-                    assert!(fast.u == slow.u && fast.v == slow.v, "chroma differs: {at}");
-                    assert!(fast.depth == slow.depth, "depth differs: {at}");
-                    assert!(fast.ground == slow.ground, "ground points differ: {at}");
-                }
+                // The seed changes textures, not where the props stand.
+                let fast = render_culled(&spec, &proj, 1, true);
+                let slow = render_culled(&spec, &proj, 1, false);
+                let at = format!("{} shadows={shadows}", spec.name);
+                assert!(fast.y == slow.y, "luma differs: {at}");
+                assert!(fast.u == slow.u && fast.v == slow.v, "chroma differs: {at}");
+                assert!(fast.depth == slow.depth, "depth differs: {at}");
+                assert!(fast.ground == slow.ground, "ground points differ: {at}");
             }
         }
         assert!(solids_seen > 10, "the scenes have props to cull");
