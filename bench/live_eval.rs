@@ -13,6 +13,15 @@
 //! (frame, track) events, and those true points with Gaussian noise of the
 //! measured size — so that input noise, bias and event selection can be
 //! told apart.
+//!
+//! Diagnostics by environment: `MISSES=1` sorts every eligible person who
+//! got no final height (untracked, fragments, others, unmeasured);
+//! `PERSON=id` prints that person's every frame: its truth box, visibility,
+//! how many other boxes overlap it, the best region's IoU, box and SVM
+//! score, and the tracks on it (`*`: gave a sample that frame); `TRACK=id`,
+//! `FINALS=1`, `SWAP=1`, `KAPPA=1` follow one track, the final heights,
+//! identity swaps and the lean fit; `DUMP=FILE` writes every observation
+//! with its truth as CSV.
 
 use stature::calibrate::geometry::HeadFoot;
 use stature::calibrate::live::{iou, run_sim};
@@ -77,10 +86,54 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     // region of IoU >= 0.5, that region called single, a track snapped to
     // it this frame (sample given), a track on it but merged/coasting].
     let mut funnel = [0u64; 5];
+    // PERSON=id: that person's frames, its best region and what became of it.
+    let person: Option<u32> = std::env::var("PERSON")
+        .ok()
+        .map(|v| v.parse().expect("PERSON=id"));
+    let mut frame_no = 0u64;
     let run = run_sim(&format!("sim:{scene}?{q}"), &cfg, |p, sim| {
         let (w_px, h_px) = (p.frame.size().width as f64, p.frame.size().height as f64);
         let (set, verdicts) = p.regions();
         let truth = sim.truth();
+        frame_no += 1;
+        if let Some(o) = person.and_then(|id| truth.iter().find(|o| o.id == id && o.kind == Kind::Person)) {
+            let ob = o.bbox.map(f64::from);
+            let best = set
+                .regions()
+                .iter()
+                .enumerate()
+                .map(|(j, r)| {
+                    let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
+                    (iou(ob, rb), j, rb)
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            let others = truth
+                .iter()
+                .filter(|q| q.id != o.id && q.visible_px >= 50 && iou(ob, q.bbox.map(f64::from)) > 0.0)
+                .count();
+            let tracks: Vec<String> = p
+                .tracker()
+                .tracks()
+                .iter()
+                .filter(|t| {
+                    let tb = [t.bbox.x0, t.bbox.y0, t.bbox.x1, t.bbox.y1].map(f64::from);
+                    iou(tb, ob) > 0.3
+                })
+                .map(|t| format!("t{}{}", t.id, if t.fresh.is_some() { "*" } else { "" }))
+                .collect();
+            println!(
+                "  person {} frame {} box {:?} vis {:.2} overlapping {} | region iou {:.2} box {:?} score {:?} | tracks {:?}",
+                o.id,
+                frame_no - 1,
+                ob.map(|v| v as i32),
+                o.visible_fraction,
+                others,
+                best.map_or(0.0, |b| b.0),
+                best.map(|b| b.2.map(|v| v as i32)),
+                best.and_then(|b| verdicts.get(b.1)).map(|v| (v.score * 100.0).round() / 100.0),
+                tracks
+            );
+        }
         for o in truth {
             if o.kind != Kind::Person || o.visible_fraction < 0.98 || !o.walking {
                 continue;
