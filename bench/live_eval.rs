@@ -98,15 +98,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         frame_no += 1;
         if let Some(o) = person.and_then(|id| truth.iter().find(|o| o.id == id && o.kind == Kind::Person)) {
             let ob = o.bbox.map(f64::from);
-            let best = set
-                .regions()
-                .iter()
-                .enumerate()
-                .map(|(j, r)| {
-                    let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
-                    (iou(ob, rb), j, rb)
-                })
-                .max_by(|a, b| a.0.total_cmp(&b.0));
+            let best = best_region(set, ob);
             let others = truth
                 .iter()
                 .filter(|q| q.id != o.id && q.visible_px >= 50 && iou(ob, q.bbox.map(f64::from)) > 0.0)
@@ -147,15 +139,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
                 continue;
             }
             funnel[0] += 1;
-            let best = set
-                .regions()
-                .iter()
-                .enumerate()
-                .map(|(j, r)| {
-                    let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
-                    (iou(ob, rb), j)
-                })
-                .max_by(|a, b| a.0.total_cmp(&b.0));
+            let best = best_region(set, ob).map(|(v, j, _)| (v, j));
             let Some((v, j)) = best else { continue };
             if v < 0.5 {
                 continue;
@@ -647,6 +631,18 @@ fn main() {
             run(&scene, s, frames, &extra, &toml);
         }
     }
+}
+
+/// The region with the largest IoU with box `ob`: (IoU, index, its box).
+fn best_region(set: &stature::detect::RegionSet, ob: [f64; 4]) -> Option<(f64, usize, [f64; 4])> {
+    set.regions()
+        .iter()
+        .enumerate()
+        .map(|(j, r)| {
+            let rb = [r.bbox.x0, r.bbox.y0, r.bbox.x1, r.bbox.y1].map(f64::from);
+            (iou(ob, rb), j, rb)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0))
 }
 
 /// Why eligible people got no final height: each one's tracks, with the
