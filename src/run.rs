@@ -130,7 +130,8 @@ impl Pipeline {
         Pipeline {
             frame: Frame::new(size),
             detector: Detector::new(&cfg.detect, size),
-            regions: RegionSet::with_capacity(max_regions, cfg.detect.run_capacity(size)),
+            regions: RegionSet::with_capacity(max_regions, cfg.detect.run_capacity(size))
+                .with_core(cfg.detect.core_run_capacity(size)),
             // The configuration was validated, weights included; should the
             // file have changed since, no region is called a person.
             classifier: Classifier::new(&cfg.classify).unwrap_or_else(|e| {

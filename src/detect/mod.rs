@@ -117,9 +117,12 @@ pub struct DetectConfig {
     /// people still go (0 = the square alone, the default; see
     /// [`morphology::open_keeping_vertical`]). Off by default: at 2 it
     /// finds more people's whole boxes (sim `wide` 76.6 → 93.8 %, PETS
-    /// 90.0 → 90.7 %) but thin streaks above heads and below feet lengthen
-    /// the extents the calibration measures, and the live pipeline
-    /// calibrates and measures worse (`bench/RESULTS.md`, "Detection").
+    /// 90.0 → 90.7 %) but the live pipeline calibrates worse
+    /// (`bench/RESULTS.md`, "Detection"). When on, the regions' head and
+    /// foot rows come from the square opening alone
+    /// ([`extremes::from_subset`]), their body axis too
+    /// ([`RegionSet::fill_core`]), and a region whose box reaches well beyond
+    /// those rows is [`Region::loose_ends`] (no head/foot sample).
     pub open_vertical_radius: u32,
     /// Closing half-width in pixels (fills holes and gaps; 0 = off).
     pub close_radius: u32,
@@ -265,6 +268,17 @@ impl DetectConfig {
         size.height * self.max_runs_per_row as usize
     }
 
+    /// Core runs a [`RegionSet`] for this config reserves
+    /// ([`RegionSet::with_core`]): as many as its runs with the vertical
+    /// opening on (a core is a subset of its region), none without.
+    pub fn core_run_capacity(&self, size: Size) -> usize {
+        if self.open_vertical_radius > 0 && self.open_radius > 0 {
+            self.run_capacity(size)
+        } else {
+            0
+        }
+    }
+
     /// Smallest region kept at frame `size`, in pixels.
     pub fn min_area(&self, size: Size) -> u32 {
         let a = u64::from(self.min_area_per_mpix) * size.pixels() as u64 / 1_000_000;
@@ -325,6 +339,17 @@ pub struct Region {
     /// straight image column by construction, not the person's outline,
     /// so its silhouette axis leans toward the image vertical.
     pub split: bool,
+    /// Its box reaches well beyond its head or foot row (only with
+    /// [`DetectConfig::open_vertical_radius`]: the head and foot rows come
+    /// from the square opening, the box from the union, and they disagree
+    /// by more than [`extremes::end_tolerance`]): the region is a person's
+    /// box, but where the person ends is uncertain, so it gives no head or
+    /// foot sample.
+    pub loose_ends: bool,
+    /// Its core's runs (the part the square opening kept, with
+    /// [`DetectConfig::open_vertical_radius`]; empty otherwise): indices
+    /// into its set's core store (read them with [`RegionSet::axis_runs_of`]).
+    pub core: core::ops::Range<u32>,
     /// Its run-length mask: indices into its set's run store, sorted by
     /// row (read them with [`RegionSet::runs_of`]).
     pub runs: core::ops::Range<u32>,
@@ -335,6 +360,9 @@ pub struct Region {
 pub struct RegionSet {
     regions: Vec<Region>,
     runs: Vec<Run>,
+    /// Runs of the regions' cores ([`Region::core`]); no room is reserved
+    /// unless [`RegionSet::with_core`] asked for it.
+    core: Vec<Run>,
     region_capacity: usize,
     run_capacity: usize,
     /// Regions dropped this frame because the set was full.
@@ -350,16 +378,24 @@ impl RegionSet {
         RegionSet {
             regions: Vec::with_capacity(regions),
             runs: Vec::with_capacity(runs),
+            core: Vec::new(),
             region_capacity: regions,
             run_capacity: runs,
             overflow: 0,
             runs_dropped: 0,
         }
     }
+    /// Reserves room for `runs` core runs in all ([`Region::core`]; the
+    /// detector fills them only with `detect.open_vertical_radius > 0`).
+    pub fn with_core(mut self, runs: usize) -> Self {
+        self.core = Vec::with_capacity(runs);
+        self
+    }
     /// Empties the set, keeping its buffers.
     pub fn clear(&mut self) {
         self.regions.clear();
         self.runs.clear();
+        self.core.clear();
         self.overflow = 0;
         self.runs_dropped = 0;
     }
@@ -384,6 +420,63 @@ impl RegionSet {
     /// The runs of one region.
     pub fn runs_of(&self, region: &Region) -> &[Run] {
         &self.runs[region.runs.start as usize..region.runs.end as usize]
+    }
+    /// The runs a region's body axis is fitted to: its core's when it has
+    /// one, else its own.
+    pub fn axis_runs_of(&self, region: &Region) -> &[Run] {
+        if region.core.is_empty() {
+            self.runs_of(region)
+        } else {
+            &self.core[region.core.start as usize..region.core.end as usize]
+        }
+    }
+    /// Sets every region's core to the pixels of its runs that `inner`
+    /// holds, as runs. A region whose core does not fit in the reserved
+    /// room, or is empty, keeps an empty core (its axis comes from its own
+    /// runs).
+    pub fn fill_core(&mut self, inner: &BitMask) {
+        self.core.clear();
+        let room = self.core.capacity();
+        for r in self.regions.iter_mut() {
+            let start = self.core.len();
+            let mut full = false;
+            for run in &self.runs[r.runs.start as usize..r.runs.end as usize] {
+                let y = usize::from(run.y);
+                let mut open: Option<u16> = None;
+                for x in run.x0..=run.x1 {
+                    let on = inner.get(usize::from(x), y);
+                    match (on, open) {
+                        (true, None) => open = Some(x),
+                        (false, Some(x0)) => {
+                            full |= self.core.len() == room;
+                            if !full {
+                                self.core.push(Run {
+                                    y: run.y,
+                                    x0,
+                                    x1: x - 1,
+                                });
+                            }
+                            open = None;
+                        }
+                        _ => {}
+                    }
+                }
+                if let Some(x0) = open {
+                    full |= self.core.len() == room;
+                    if !full {
+                        self.core.push(Run {
+                            y: run.y,
+                            x0,
+                            x1: run.x1,
+                        });
+                    }
+                }
+            }
+            if full {
+                self.core.truncate(start);
+            }
+            r.core = start as u32..self.core.len() as u32;
+        }
     }
     /// Adds a region with its runs; hands the region back when either buffer is full.
     pub fn push(&mut self, mut region: Region, runs: &[Run]) -> Result<(), Region> {
@@ -533,9 +626,17 @@ impl Detector {
     pub fn label(&mut self, out: &mut RegionSet) {
         out.clear();
         self.labeller.label(&self.clean, self.min_area, out);
-        if self.refine_extremes {
-            let before = &self.before_open;
-            out.each_mut(|r, runs| extremes::refine(r, runs, before, regions::FOOT_PIXELS));
+        let before = &self.before_open;
+        let fp = regions::FOOT_PIXELS;
+        if self.open_vertical_radius > 0 && self.open_radius > 0 {
+            // `vertical` holds the square opening: head and foot rows from it.
+            let (square, refine) = (&self.vertical, self.refine_extremes);
+            out.each_mut(|r, runs| extremes::from_subset(r, runs, square, before, fp, refine));
+            // The body axis is fitted to the same pixels (thin swinging arms
+            // and legs lean it).
+            out.fill_core(square);
+        } else if self.refine_extremes {
+            out.each_mut(|r, runs| extremes::refine(r, runs, before, fp));
         }
     }
     /// The foreground mask straight from the model (shadows excluded).

@@ -192,7 +192,9 @@ pub fn open(m: &mut BitMask, tmp: &mut BitMask, rx: u32, ry: u32) {
 /// does. Distant people's legs and hanging arms are one or two pixels
 /// wide, thinner than the square, but upright; sensor and compression
 /// specks, and the thin bridges that join two people walking side by
-/// side, are neither. `vertical` and `tmp` are scratch of the same size.
+/// side, are neither. `vertical` and `tmp` are scratch of the same size;
+/// with `v > 0`, `vertical` holds the square opening alone on return (the
+/// head and foot rows are taken from it, [`super::extremes::from_subset`]).
 pub fn open_keeping_vertical(
     m: &mut BitMask,
     vertical: &mut BitMask,
@@ -209,6 +211,8 @@ pub fn open_keeping_vertical(
     }
     open(m, tmp, r, r);
     if v > 0 {
+        // m = the line opening, vertical = the square's; then m = their union.
+        core::mem::swap(&mut m.words, &mut vertical.words);
         for (w, &k) in m.words.iter_mut().zip(vertical.words.iter()) {
             *w |= k;
         }
@@ -392,6 +396,10 @@ mod tests {
                             sq[i] || line[i],
                             "{w}x{h} r={r} v={v} ({x},{y})"
                         );
+                        if v > 0 {
+                            // The square opening alone is handed back.
+                            assert_eq!(vm.get(x, y), sq[i], "square {w}x{h} r={r} v={v}");
+                        }
                     }
                 }
             }

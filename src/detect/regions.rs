@@ -288,6 +288,8 @@ impl Labeller {
                 foot: foot(runs),
                 touches_border: touches(bbox, w, h),
                 split: false,
+                loose_ends: false,
+                core: 0..0,
                 runs: 0..0,
             };
             // A full set counts the overflow itself.
@@ -462,6 +464,8 @@ fn region_of(runs: &[Run], w: usize, h: usize) -> Option<Region> {
         foot: foot(runs),
         touches_border: touches(bbox, w, h),
         split: false,
+        loose_ends: false,
+        core: 0..0,
         runs: 0..0,
     })
 }
@@ -513,6 +517,10 @@ impl BottomPixels {
             }
             self.add_row(f64::from(y), n, rx2 as f64);
         }
+    }
+    /// Whether every pixel asked for is in.
+    pub(super) fn is_full(&self) -> bool {
+        self.need == 0
     }
     /// The mean `[u, v]`; `None` before any pixel.
     pub(super) fn mean(&self) -> Option<[f32; 2]> {
@@ -693,6 +701,35 @@ mod tests {
         let mut out = RegionSet::with_capacity(4, 64);
         few_runs.label(&m, 1, &mut out);
         assert_eq!(out.runs_dropped, 4);
+    }
+
+    /// A region's core is the part of its runs another mask holds, as
+    /// runs (a run can break in two); without room reserved, or for a
+    /// region with no core pixels, the axis runs are the region's own.
+    #[test]
+    fn cores_are_the_inner_parts_of_the_runs() {
+        let m = mask_from(&["..######..", "..######..", "..##..##..", ".........."]);
+        let inner = mask_from(&["...###....", "..#..#.#..", "..........", ".........."]);
+        let mut l = Labeller::new(64, 10);
+        let mut out = RegionSet::with_capacity(4, 64).with_core(64);
+        l.label(&m, 1, &mut out);
+        out.fill_core(&inner);
+        let r = out.regions()[0].clone();
+        let core: Vec<(u16, u16, u16)> = out
+            .axis_runs_of(&r)
+            .iter()
+            .map(|r| (r.y, r.x0, r.x1))
+            .collect();
+        assert_eq!(core, [(0, 3, 5), (1, 2, 2), (1, 5, 5), (1, 7, 7)]);
+        let own = out.runs_of(&r).len();
+        out.fill_core(&BitMask::new(10, 4));
+        let r = out.regions()[0].clone();
+        assert_eq!(out.axis_runs_of(&r).len(), own, "no core: its own runs");
+        let mut none = RegionSet::with_capacity(4, 64);
+        l.label(&m, 1, &mut none);
+        none.fill_core(&inner);
+        let r = none.regions()[0].clone();
+        assert_eq!(none.axis_runs_of(&r).len(), own, "no room: its own runs");
     }
 
     /// Two tall blobs joined at the bottom (people side by side touching

@@ -397,7 +397,7 @@ impl Tracker {
                             t,
                             frame_no,
                             r,
-                            regions.runs_of(r),
+                            regions.axis_runs_of(r),
                             &self.cfg,
                             &self.table,
                             frame,
@@ -456,7 +456,7 @@ impl Tracker {
                 &mut t,
                 frame_no,
                 r,
-                regions.runs_of(r),
+                regions.axis_runs_of(r),
                 &self.cfg,
                 &self.table,
                 frame,
@@ -639,7 +639,7 @@ fn snap(
     t.last = hf;
     t.last_seen = frame_no;
     t.seen_box = r.bbox;
-    if r.touches_border {
+    if r.touches_border || r.loose_ends {
         return;
     }
     let e = (r.foot[1] - r.head[1]).max(0.0);

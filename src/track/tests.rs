@@ -72,6 +72,8 @@ fn region(set: &mut RegionSet, people: &[Person]) {
         foot: [cx, bx[3] as f32],
         touches_border: bx[0] == 0 || bx[1] == 0 || bx[2] == W as i32 - 1 || bx[3] == H as i32 - 1,
         split: false,
+        loose_ends: false,
+        core: 0..0,
         runs: 0..0,
     };
     set.push(r, &runs).unwrap();
