@@ -44,9 +44,9 @@ fn sqrt_map() -> &'static [u8; 256] {
     SQRT.get_or_init(|| {
         let mut t = [0u8; 256];
         for (v, o) in t.iter_mut().enumerate() {
-            // isqrt(4x) = floor(2·sqrt(x)), so (isqrt(4x) + 1) / 2 rounds
+            // isqrt(4x) = floor(2·sqrt(x)), so ceil(isqrt(4x) / 2) rounds
             // sqrt(x) to nearest (x = 255·v ≤ 65025: at most 255).
-            *o = (((4 * 255 * v as u32).isqrt() + 1) / 2) as u8;
+            *o = (4 * 255 * v as u32).isqrt().div_ceil(2) as u8;
         }
         t
     })
@@ -381,13 +381,13 @@ fn normalise_blocks(
 ) -> usize {
     let (bx_n, by_n) = (ncx.saturating_sub(1), ncy.saturating_sub(1));
     let mut k = 0;
-    for by in 0..by_n {
+    'fill: for by in 0..by_n {
         for bx in 0..bx_n {
             if !selected(by * bx_n + bx) {
                 continue;
             }
             let Some(dst) = out.get_mut(k..k + BLOCK_DIM) else {
-                return k;
+                break 'fill;
             };
             let c = [
                 by * ncx + bx,
@@ -402,13 +402,15 @@ fn normalise_blocks(
                 for (o, &v) in d.iter_mut().zip(src) {
                     *o = ((v * recip) >> 16).min(255) as u8;
                 }
-                if let Some(m) = map {
-                    for o in d.iter_mut() {
-                        *o = m[usize::from(*o)];
-                    }
-                }
             }
             k += BLOCK_DIM;
+        }
+    }
+    // Mapped in a separate pass so that the shipped layout (no map) runs
+    // the normalisation loop exactly as before.
+    if let Some(m) = map {
+        for o in &mut out[..k] {
+            *o = m[usize::from(*o)];
         }
     }
     k
