@@ -176,6 +176,9 @@ struct TrainArgs {
     /// Coarse HOG blocks, cells merged 2x2 (default true).
     #[arg(long)]
     coarse: Option<bool>,
+    /// Square-root compression of the HOG values (default false).
+    #[arg(long)]
+    hog_sqrt: Option<bool>,
     /// Feature set: hog+lbp, hog or lbp.
     #[arg(long, default_value = "hog+lbp")]
     features: String,
@@ -760,6 +763,7 @@ fn train_options(
         Some(false) => 0,
     };
     layout.hog_coarse = a.coarse.unwrap_or(d.hog_coarse);
+    layout.hog_sqrt = a.hog_sqrt.unwrap_or(d.hog_sqrt);
     match a.features.as_str() {
         "hog+lbp" => {}
         "hog" => layout.lbp_cells.fill(false),

@@ -118,6 +118,10 @@ pub struct Layout {
     /// and every 2×2 block of those (needs an even number of cells a side,
     /// at least 4).
     pub hog_coarse: bool,
+    /// Square-root compression of the normalised HOG values, fine and
+    /// coarse blocks (see [`super::hog`]; off in the shipped layout: it
+    /// measured no gain, `bench/RESULTS.md`).
+    pub hog_sqrt: bool,
 
     /// One flag per HOG block (row-major): computed and fed to the SVM.
     pub hog_blocks: Vec<bool>,
@@ -145,6 +149,7 @@ impl Layout {
             fit: Fit::Contain,
             aspect_bins: 0,
             hog_coarse: false,
+            hog_sqrt: false,
             hog_blocks: Vec::new(),
             lbp_cells: Vec::new(),
         };
@@ -280,9 +285,10 @@ impl Layout {
     pub fn lbp_dim(&self) -> usize {
         self.selected_lbp_cells() * LBP_BINS
     }
-    /// Flags byte of the header: bit 0 coarse HOG (the other bits are 0).
+    /// Flags byte of the header: bit 0 coarse HOG, bit 1 square-root HOG
+    /// (the other bits are 0).
     pub fn flags(&self) -> u8 {
-        u8::from(self.hog_coarse)
+        u8::from(self.hog_coarse) | u8::from(self.hog_sqrt) << 1
     }
     /// Feature vector length.
     pub fn dim(&self) -> usize {
@@ -322,7 +328,7 @@ impl Layout {
     /// One line for reports: sizes, selection, dimension and hash.
     pub fn describe(&self) -> String {
         format!(
-            "window {}x{} ({:?} fit), margin {}/256, HOG cell {} ({} of {} blocks, {} coarse), LBP cell {} ({} of {} cells, threshold {}), {} box-shape bins, dim {}, layout hash {:016x}",
+            "window {}x{} ({:?} fit), margin {}/256, HOG cell {} ({} of {} blocks, {} coarse), LBP cell {} ({} of {} cells, threshold {}), {} box-shape bins{}, dim {}, layout hash {:016x}",
             self.win_w,
             self.win_h,
             self.fit,
@@ -336,6 +342,7 @@ impl Layout {
             self.lbp_cell_count(),
             self.lbp_threshold,
             self.aspect_bins,
+            if self.hog_sqrt { ", square-root HOG" } else { "" },
             self.dim(),
             self.hash()
         )
@@ -426,6 +433,7 @@ mod tests {
             |l: &mut Layout| l.fit = Fit::Contain,
             |l: &mut Layout| l.aspect_bins = 0,
             |l: &mut Layout| l.hog_coarse = false,
+            |l: &mut Layout| l.hog_sqrt = true,
         ] {
             let mut c = a.clone();
             change(&mut c);
