@@ -120,21 +120,18 @@ pub fn from_subset(
     refine: bool,
 ) {
     // Top: the first row with an inner pixel.
-    let mut top = None;
-    let mut i = 0;
-    while i < runs.len() && top.is_none() {
-        let y = runs[i].y;
-        let mut acc: Option<(u32, u64, usize, usize)> = None;
-        while i < runs.len() && runs[i].y == y {
-            let r = runs[i];
-            let got = row_pixels(inner, usize::from(y), usize::from(r.x0), usize::from(r.x1));
-            acc = merge(acc, got);
-            i += 1;
-        }
-        if let Some((n, sx, a, b)) = acc {
-            top = Some((End { y, span: (a, b) }, n, sx));
-        }
-    }
+    let top = rows(runs).find_map(|row| {
+        inner_pixels(row, inner).map(|(n, sx, a, b)| {
+            (
+                End {
+                    y: row[0].y,
+                    span: (a, b),
+                },
+                n,
+                sx,
+            )
+        })
+    });
     let Some((top, top_n, top_sx)) = top else {
         // Thin structures only: where a person would end is anyone's guess.
         region.loose_ends = true;
@@ -172,22 +169,34 @@ pub fn end_tolerance(box_rows: usize) -> usize {
 /// bottom up until it is full; the lowest row with such pixels.
 fn inner_bottom(runs: &[Run], inner: &BitMask, b: &mut BottomPixels) -> Option<End> {
     let mut bottom = None;
-    let mut i = runs.len();
-    while i > 0 && !b.is_full() {
-        let y = runs[i - 1].y;
-        let mut acc = None;
-        while i > 0 && runs[i - 1].y == y {
-            let r = runs[i - 1];
-            let got = row_pixels(inner, usize::from(y), usize::from(r.x0), usize::from(r.x1));
-            acc = merge(acc, got);
-            i -= 1;
+    for row in rows(runs).rev() {
+        if b.is_full() {
+            break;
         }
-        if let Some((n, sx, a, hi)) = acc {
+        if let Some((n, sx, a, hi)) = inner_pixels(row, inner) {
+            let y = row[0].y;
             bottom.get_or_insert(End { y, span: (a, hi) });
             b.add_row(f64::from(y), n, 2.0 * sx as f64);
         }
     }
     bottom
+}
+
+/// `runs` (sorted by row) grouped into rows, top to bottom.
+fn rows(runs: &[Run]) -> core::slice::ChunkBy<'_, Run, impl FnMut(&Run, &Run) -> bool> {
+    runs.chunk_by(|a, b| a.y == b.y)
+}
+
+/// The pixels of one row's runs that `inner` holds: count, sum of
+/// columns, leftmost and rightmost column ([`row_pixels`] over the runs).
+fn inner_pixels(row: &[Run], inner: &BitMask) -> Option<(u32, u64, usize, usize)> {
+    row.iter().fold(None, |acc, r| {
+        let y = usize::from(r.y);
+        merge(
+            acc,
+            row_pixels(inner, y, usize::from(r.x0), usize::from(r.x1)),
+        )
+    })
 }
 
 /// Two rows' (or runs') pixel sums combined.

@@ -443,32 +443,24 @@ impl RegionSet {
             for run in &self.runs[r.runs.start as usize..r.runs.end as usize] {
                 let y = usize::from(run.y);
                 let mut open: Option<u16> = None;
-                for x in run.x0..=run.x1 {
-                    let on = inner.get(usize::from(x), y);
+                // One column past the run counts as off: it closes a core
+                // run that reaches the run's end.
+                for x in u32::from(run.x0)..=u32::from(run.x1) + 1 {
+                    let on = x <= u32::from(run.x1) && inner.get(x as usize, y);
                     match (on, open) {
-                        (true, None) => open = Some(x),
+                        (true, None) => open = Some(x as u16),
                         (false, Some(x0)) => {
                             full |= self.core.len() == room;
                             if !full {
                                 self.core.push(Run {
                                     y: run.y,
                                     x0,
-                                    x1: x - 1,
+                                    x1: (x - 1) as u16,
                                 });
                             }
                             open = None;
                         }
                         _ => {}
-                    }
-                }
-                if let Some(x0) = open {
-                    full |= self.core.len() == room;
-                    if !full {
-                        self.core.push(Run {
-                            y: run.y,
-                            x0,
-                            x1: run.x1,
-                        });
                     }
                 }
             }
