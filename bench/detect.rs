@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! cargo bench --bench detect -- [--size 1280x720] [--warm 60] [--frames 40] [--dump DIR]
+//!     [--interval N] [--check] [--slow]
 //! valgrind --tool=callgrind --toggle-collect='*measured*' \
 //!     target/release/deps/detect-* --size 1280x720 --frames 20
 //! ```
@@ -96,6 +97,7 @@ fn main() {
     let mut dump: Option<String> = None;
     let mut force_slow = false;
     let mut check = false;
+    let mut interval: Option<u32> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -113,6 +115,8 @@ fn main() {
             // Every pixel through the scalar path (to price it).
             "--slow" => force_slow = true,
             "--check" => check = true,
+            // Price another `detect.update_interval` without a rebuild.
+            "--interval" => interval = Some(args.next().expect("n").parse().expect("n")),
             "--bench" => {}
             _ => {}
         }
@@ -153,7 +157,10 @@ fn main() {
         }
         eprintln!("wrote {path} ({} frames)", all.len());
     }
-    let cfg = DetectConfig::default();
+    let mut cfg = DetectConfig::default();
+    if let Some(n) = interval {
+        cfg.update_interval = n;
+    }
     let mut det = Detector::new(&cfg, size);
     det.background_mut().set_force_slow(force_slow);
     let mut out = RegionSet::with_capacity(cfg.region_capacity(), cfg.run_capacity(size));
