@@ -97,7 +97,7 @@ fn main() {
     let mut dump: Option<String> = None;
     let mut force_slow = false;
     let mut check = false;
-    let mut interval: Option<u32> = None;
+    let mut cfg = DetectConfig::default();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -116,10 +116,15 @@ fn main() {
             "--slow" => force_slow = true,
             "--check" => check = true,
             // Price another `detect.update_interval` without a rebuild.
-            "--interval" => interval = Some(args.next().expect("n").parse().expect("n")),
+            "--interval" => cfg.update_interval = args.next().expect("n").parse().expect("n"),
             "--bench" => {}
             _ => {}
         }
+    }
+    // The model would clamp an out-of-range value and mislabel the run.
+    if let Err(e) = cfg.validate() {
+        eprintln!("detect bench: {e}");
+        std::process::exit(2);
     }
     let Some(dir) = shared_data_dir() else {
         eprintln!("detect bench: ../shared/data missing, nothing to measure");
@@ -156,10 +161,6 @@ fn main() {
             w.write_all(&fr.v).unwrap();
         }
         eprintln!("wrote {path} ({} frames)", all.len());
-    }
-    let mut cfg = DetectConfig::default();
-    if let Some(n) = interval {
-        cfg.update_interval = n;
     }
     let mut det = Detector::new(&cfg, size);
     det.background_mut().set_force_slow(force_slow);
