@@ -89,6 +89,8 @@ fn free_port() -> u16 {
 struct Broker {
     child: Option<Child>,
     port: u16,
+    /// The second port [`Broker::start_free`] found (the config may use it).
+    other_port: u16,
     conf: PathBuf,
     dir: PathBuf,
 }
@@ -96,24 +98,46 @@ struct Broker {
 impl Broker {
     /// Starts a broker with `extra` config lines (the listener is added).
     fn start(dir: &Path, extra: &str) -> Broker {
-        let port = free_port();
-        Broker::start_on(dir, port, &format!("listener {port} 127.0.0.1\n{extra}"))
+        Broker::start_free(dir, |[port, _]| {
+            format!("listener {port} 127.0.0.1\n{extra}")
+        })
     }
 
-    fn start_on(dir: &Path, port: u16, conf_text: &str) -> Broker {
-        let conf = dir.join("mosquitto.conf");
-        std::fs::write(&conf, conf_text).unwrap();
-        let mut b = Broker {
-            child: None,
-            port,
-            conf,
-            dir: dir.to_path_buf(),
-        };
-        b.restart();
-        b
+    /// Starts a broker on two free ports (`[p, q]`; it must listen on `p`)
+    /// with the config `conf` writes for them. A port found free can be
+    /// taken before the broker binds it (by any socket of the parallel
+    /// tests): then it tries again with fresh ports.
+    fn start_free(dir: &Path, conf: impl Fn([u16; 2]) -> String) -> Broker {
+        for attempt in 1.. {
+            let ports = [free_port(), free_port()];
+            let path = dir.join("mosquitto.conf");
+            std::fs::write(&path, conf(ports)).unwrap();
+            let mut b = Broker {
+                child: None,
+                port: ports[0],
+                other_port: ports[1],
+                conf: path,
+                dir: dir.to_path_buf(),
+            };
+            match b.spawn() {
+                Ok(()) => return b,
+                Err(log) if attempt < 5 && log.contains("Address already in use") => continue,
+                Err(log) => panic!("mosquitto exited on start: {log}"),
+            }
+        }
+        unreachable!()
     }
 
+    /// Starts the broker again on its port (after [`Broker::stop`]).
     fn restart(&mut self) {
+        if let Err(log) = self.spawn() {
+            panic!("mosquitto exited on restart: {log}");
+        }
+    }
+
+    /// Spawns the broker and waits until it listens; its log if it exits
+    /// first.
+    fn spawn(&mut self) -> Result<(), String> {
         assert!(self.child.is_none());
         let log = std::fs::OpenOptions::new()
             .create(true)
@@ -130,6 +154,12 @@ impl Broker {
         self.child = Some(child);
         let deadline = Instant::now() + PATIENCE;
         while std::net::TcpStream::connect(("127.0.0.1", self.port)).is_err() {
+            if let Some(c) = self.child.as_mut() {
+                if c.try_wait().ok().flatten().is_some() {
+                    self.child = None;
+                    return Err(self.log());
+                }
+            }
             assert!(
                 Instant::now() < deadline,
                 "mosquitto did not listen on {}: {}",
@@ -138,6 +168,7 @@ impl Broker {
             );
             std::thread::sleep(Duration::from_millis(20));
         }
+        Ok(())
     }
 
     /// Stops the broker the way a service manager does (SIGTERM: it saves
@@ -723,15 +754,13 @@ fn broker_outage_mid_run_loses_no_final_height() {
     let dir = temp_dir("outage");
     // Persistence keeps the subscriber's session (and the messages queued
     // for it) across the restart, as a production broker would.
-    let port = free_port();
-    let mut broker = Broker::start_on(
-        &dir,
-        port,
-        &format!(
+    let mut broker = Broker::start_free(&dir, |[port, _]| {
+        format!(
             "listener {port} 127.0.0.1\nallow_anonymous true\npersistence true\npersistence_location {}/\n",
             dir.display()
-        ),
-    );
+        )
+    });
+    let port = broker.port;
     let prefix = "stature/outage";
     let sub = Sub::start(
         port,
@@ -1103,16 +1132,13 @@ fn tls_with_a_private_ca() {
         "-out",
         "server.pem",
     ]);
-    let tls_port = free_port();
-    let plain_port = free_port();
     let d = dir.display();
-    let broker = Broker::start_on(
-        &dir,
-        plain_port,
-        &format!(
+    let broker = Broker::start_free(&dir, |[plain_port, tls_port]| {
+        format!(
             "per_listener_settings false\nallow_anonymous true\nlistener {plain_port} 127.0.0.1\nlistener {tls_port} 127.0.0.1\ncafile {d}/ca.pem\ncertfile {d}/server.pem\nkeyfile {d}/server.key\n"
-        ),
-    );
+        )
+    });
+    let tls_port = broker.other_port;
     let prefix = "stature/secure";
     // The subscriber watches on the plain listener; the camera publishes over TLS.
     let sub = Sub::start(broker.port, &[&format!("{prefix}/#")], &[]);
