@@ -22,10 +22,10 @@
 //!    `μ ← μ + ρ (x−μ)`, `σ² ← σ² + ρ ((x−μ)² − σ²)`, clamped to
 //!    `[σ²_min, σ²_max]`.
 //!
-//!    *Update interval* `N` (`update_interval`, default 4): once
+//!    *Update interval* `N` (`update_interval`, default 8): once
 //!    `α ≤ 1/(16 N)`, the mean and variance move only every `N`-th frame,
-//!    by `ρ = N α / w` — the same expected drift per frame, a quarter of
-//!    the work. Which frames: those where `frame + y + ⌊x/64⌋` is a
+//!    by `ρ = N α / w` — the same expected drift per frame, `1/N` of the
+//!    work. Which frames: those where `frame + y + ⌊x/64⌋` is a
 //!    multiple of `N` (64-pixel blocks, staggered). Weights, matching and
 //!    the mask are still updated every frame. Measured neutral for the
 //!    masks and recall (`bench/RESULTS.md`, "Detection", "Speed").

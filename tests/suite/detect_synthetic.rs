@@ -205,36 +205,45 @@ fn process_allocates_nothing_per_frame() {
 /// arithmetic makes this identical on every platform (the cross-compile
 /// check runs this test on aarch64); update the constants only when the
 /// algorithm changes on purpose. `update_interval = 1` (every frame) keeps
-/// the digest of the model before the interval existed: the interval
-/// changes only what it should.
+/// the digest of the model before the interval existed, and over the first
+/// 80 frames interval 4 changes only the model, not the masks (it applies
+/// from frame 64: `α ≤ 1/(16·4)`). The default interval 8 applies from
+/// frame 128 on, so it is pinned over a longer run (240 frames).
 #[test]
 fn model_digest_is_bit_exact() {
-    assert_eq!(
-        model_digest(&DetectConfig::default()),
-        (GOLDEN_MODEL, GOLDEN_MASKS)
-    );
-    let every_frame = DetectConfig {
-        update_interval: 1,
+    let every = |n| DetectConfig {
+        update_interval: n,
         ..DetectConfig::default()
     };
     assert_eq!(
-        model_digest(&every_frame),
+        model_digest(&every(4), 80),
+        (GOLDEN_MODEL_INTERVAL_4, GOLDEN_MASKS)
+    );
+    assert_eq!(
+        model_digest(&every(1), 80),
         (GOLDEN_MODEL_EVERY_FRAME, GOLDEN_MASKS)
     );
+    let default = model_digest(&DetectConfig::default(), 240);
+    assert_eq!(default, GOLDEN_DEFAULT_240);
+    // ... and the interval is in force by then.
+    assert_ne!(default.0, model_digest(&every(1), 240).0);
 }
 
-/// Model digest and raw-mask hash after the synthetic sequence.
-fn model_digest(cfg: &DetectConfig) -> (u64, u64) {
+/// Model digest and raw-mask hash after `frames` frames of the synthetic
+/// sequence (the person walks right for 120 frames, then again from the
+/// left).
+fn model_digest(cfg: &DetectConfig, frames: u16) -> (u64, u64) {
     let mut d = Detector::new(cfg, SIZE);
     let mut out = RegionSet::with_capacity(64, 4096);
     let mut f = Frame::new(SIZE);
     let mut s = Scene::new();
     let mut mask_hash = 0u64;
-    for i in 0..80u16 {
+    for i in 0..frames {
+        let x = 2 * (i % 120);
         let p = BBox {
-            x0: 20 + 2 * i,
+            x0: 20 + x,
             y0: 60,
-            x1: 40 + 2 * i,
+            x1: 40 + x,
             y1: 130,
         };
         s.render(&mut f, if i >= 60 { 1.2 } else { 1.0 }, 0.0, Some(p));
@@ -248,6 +257,7 @@ fn model_digest(cfg: &DetectConfig) -> (u64, u64) {
     got
 }
 
-const GOLDEN_MODEL: u64 = 0xbe46023ef5257860;
+const GOLDEN_MODEL_INTERVAL_4: u64 = 0xbe46023ef5257860;
+const GOLDEN_DEFAULT_240: (u64, u64) = (0xa457b03474a12aa5, 0xd34d65b944518f98);
 const GOLDEN_MODEL_EVERY_FRAME: u64 = 0x067528caad713465;
 const GOLDEN_MASKS: u64 = 0xf65046013f69a128;
