@@ -148,6 +148,27 @@ fn residuals(
     bad
 }
 
+/// The absolute residuals under horizon `d` into `out` (as many as fit):
+/// how many, and the number of unphysical tracks ([`residuals`]).
+fn abs_residuals(
+    anchors: &[Anchor],
+    groups: &Groups<'_>,
+    g0: &ViewGeometry,
+    d: f64,
+    ratios: &mut [f64],
+    out: &mut [f64],
+) -> (usize, usize) {
+    let mut m = 0usize;
+    let g = ViewGeometry { d, ..*g0 };
+    let bad = residuals(anchors, groups, &g, ratios, |x| {
+        if m < out.len() {
+            out[m] = x.abs();
+            m += 1;
+        }
+    });
+    (m, bad)
+}
+
 /// Tukey's biweight loss of residual `x` at cut-off `c`: `x²/2` near zero,
 /// bounded by `c²/6` (a gross outlier costs that whatever its size).
 fn tukey(x: f64, c: f64) -> f64 {
@@ -254,20 +275,8 @@ pub fn fit_horizon(
     // tracks' penalty (the absolute residuals live in a cell too).
     let absres = core::cell::RefCell::new(absres);
     let median_abs = |d: f64| {
-        let mut a = absres.borrow_mut();
-        let mut m = 0usize;
-        let bad = residuals(
-            anchors,
-            &groups,
-            &ViewGeometry { d, ..*g0 },
-            &mut cell.borrow_mut(),
-            |x| {
-                if m < a.len() {
-                    a[m] = x.abs();
-                    m += 1;
-                }
-            },
-        );
+        let a = &mut *absres.borrow_mut();
+        let (m, bad) = abs_residuals(anchors, &groups, g0, d, &mut cell.borrow_mut(), a);
         if m == 0 {
             return f64::INFINITY;
         }
@@ -282,19 +291,7 @@ pub fn fit_horizon(
     // every plausible horizon finds the basin).
     let mut scale = 0.0;
     for _ in 0..2 {
-        let mut m = 0usize;
-        residuals(
-            anchors,
-            &groups,
-            &ViewGeometry { d, ..*g0 },
-            &mut cell.borrow_mut(),
-            |x| {
-                if m < absres.len() {
-                    absres[m] = x.abs();
-                    m += 1;
-                }
-            },
-        );
+        let (m, _) = abs_residuals(anchors, &groups, g0, d, &mut cell.borrow_mut(), absres);
         if m < 2 * MIN_TRACK_ANCHORS {
             return None;
         }
