@@ -17,7 +17,9 @@
 //!   expected `λ·g·(m·a)` across the vertical, with `g` the image extent,
 //!   `m` the foot's direction of motion and `a` the unit vector across the
 //!   vertical. `λ` is estimated with `v`: walkers in different directions,
-//!   and people standing, tell the two apart.
+//!   and people standing, tell the two apart. When they cannot (everyone
+//!   crosses one way: the roll and the lean turn every line alike), the
+//!   fit takes a typical lean instead (`TYPICAL_LEAN`, 0.07) and fits `v` alone.
 //! * Single-frame lines are noisy by several degrees (pose, arms, the
 //!   detector's silhouette), so the residual is the angle between the
 //!   observed line and the vertical through its foot, the scale of the noise
