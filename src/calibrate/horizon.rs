@@ -148,16 +148,18 @@ fn residuals(
     bad
 }
 
-/// The absolute residuals under horizon `d` into `out` (as many as fit):
-/// how many, and the number of unphysical tracks ([`residuals`]).
-fn abs_residuals(
+/// The median absolute residual under horizon `d` (`out`: scratch for the
+/// absolute residuals, as many as fit): how many residuals there were, their
+/// median (0 with none), and the number of unphysical tracks
+/// ([`residuals`]).
+fn median_abs_residual(
     anchors: &[Anchor],
     groups: &Groups<'_>,
     g0: &ViewGeometry,
     d: f64,
     ratios: &mut [f64],
     out: &mut [f64],
-) -> (usize, usize) {
+) -> (usize, f64, usize) {
     let mut m = 0usize;
     let g = ViewGeometry { d, ..*g0 };
     let bad = residuals(anchors, groups, &g, ratios, |x| {
@@ -166,7 +168,11 @@ fn abs_residuals(
             m += 1;
         }
     });
-    (m, bad)
+    if m == 0 {
+        return (0, 0.0, bad);
+    }
+    let (_, med, _) = out[..m].select_nth_unstable_by(m / 2, |a, b| a.total_cmp(b));
+    (m, *med, bad)
 }
 
 /// Tukey's biweight loss of residual `x` at cut-off `c`: `x²/2` near zero,
@@ -276,12 +282,10 @@ pub fn fit_horizon(
     let absres = core::cell::RefCell::new(absres);
     let median_abs = |d: f64| {
         let a = &mut *absres.borrow_mut();
-        let (m, bad) = abs_residuals(anchors, &groups, g0, d, &mut cell.borrow_mut(), a);
-        if m == 0 {
-            return f64::INFINITY;
+        match median_abs_residual(anchors, &groups, g0, d, &mut cell.borrow_mut(), a) {
+            (0, _, _) => f64::INFINITY,
+            (_, med, bad) => med + bad as f64 * 1e9,
         }
-        let (_, med, _) = a[..m].select_nth_unstable_by(m / 2, |x, y| x.total_cmp(y));
-        *med + bad as f64 * 1e9
     };
     let mut d = search(lo, hi, GRID, median_abs);
     let absres = &mut *absres.borrow_mut();
@@ -291,13 +295,12 @@ pub fn fit_horizon(
     // every plausible horizon finds the basin).
     let mut scale = 0.0;
     for _ in 0..2 {
-        let (m, _) = abs_residuals(anchors, &groups, g0, d, &mut cell.borrow_mut(), absres);
+        let (m, med, _) =
+            median_abs_residual(anchors, &groups, g0, d, &mut cell.borrow_mut(), absres);
         if m < 2 * MIN_TRACK_ANCHORS {
             return None;
         }
-        let mid = m / 2;
-        let (_, med, _) = absres[..m].select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-        scale = (1.4826 * *med).max(MIN_SCALE_PX);
+        scale = (1.4826 * med).max(MIN_SCALE_PX);
         let c = TUKEY * scale;
         d = search((0.5 * d).max(lo), (2.0 * d).min(hi), LOCAL_GRID, |x| {
             eval(x, c)
