@@ -3,8 +3,8 @@
 # the same CARGO_TARGET_DIR so nothing is built twice):
 #   install -> three release binaries -> both targets' test binaries (the
 #   aarch64 and armv7 `stature` binaries the tests spawn are build.sh's)
-#   -> side by side: the whole suite under qemu-user on both targets
-#   (cross/test.sh run; the one test it leaves out is in its header),
+#   -> side by side: the suite under qemu-user on both targets
+#   (cross/test.sh run; what it leaves out, and why, is in its header),
 #   bit-exact report streams across targets, and the vivid VM test on the
 #   musl binary (which also runs the serial-sink test qemu-user cannot).
 # Everything after the builds is CPU-bound emulation: run together, no core
