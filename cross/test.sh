@@ -24,9 +24,10 @@
 #     classify_eval::): they are about 60 % of the suite's time and, under
 #     emulation, the long pole of CI. They measure the algorithm, not the
 #     target: the integer pipeline is bit-exact across targets, and
-#     cross/bitexact.sh proves it on the same inputs (byte-identical report
-#     streams, heights included, for 1000 frames of sim:plaza and the PETS
-#     clip's first frames), so the host's scores hold on ARM. Everything
+#     cross/bitexact.sh checks that on a sample of the same inputs
+#     (byte-identical report streams, heights included, for 1000 frames of
+#     sim:plaza and the PETS clip's first frames; not the other sim scenes),
+#     so the host's scores hold on ARM. Everything
 #     target-specific still runs: detect_pets:: (the fast path against the
 #     scalar path and the float reference on real video), the golden
 #     features, allocation counts, soak, CLI, faults, sinks, MQTT.
