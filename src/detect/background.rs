@@ -656,6 +656,17 @@ impl Background {
         &self.p
     }
 
+    /// The mean of pixel `(x, y)`'s heaviest mode (0 when it has none):
+    /// its background level. Panics outside the frame.
+    pub fn background_mean(&self, x: usize, y: usize) -> u8 {
+        let i = y * self.p.k * self.width + x;
+        if self.w[i] == 0 {
+            0
+        } else {
+            self.mu[i]
+        }
+    }
+
     /// Statistics of the last frame.
     pub fn stats(&self) -> FrameStats {
         self.stats

@@ -45,6 +45,7 @@ pub mod background;
 pub mod chroma;
 pub mod extremes;
 pub mod morphology;
+pub mod peel;
 pub mod regions;
 
 use crate::config::{check_range, ConfigError};
@@ -96,6 +97,12 @@ pub struct DetectConfig {
     pub shadow_min_ratio: f64,
     /// Lightest shadow, as a fraction of the background brightness.
     pub shadow_max_ratio: f64,
+    /// Deep shadows at the feet: a foreground pixel darker than
+    /// `shadow_min_ratio` but not darker than this fraction of the
+    /// background, with the background's chroma, is dropped when nothing
+    /// but such pixels lies under it in its column (0 = off; see
+    /// [`peel`]; off by default, see there).
+    pub deep_shadow_min_ratio: f64,
     /// Chroma term: a pixel whose (Cb, Cr) differs from a running-average
     /// chroma background by more than this L1 distance (grey levels) is
     /// foreground too, shadow or not (0 = off; luma GMM only).
@@ -180,6 +187,7 @@ impl Default for DetectConfig {
             shadow: true,
             shadow_min_ratio: 0.65,
             shadow_max_ratio: 0.95,
+            deep_shadow_min_ratio: 0.0,
             chroma_threshold: CHROMA_THRESHOLD,
             shadow_chroma_threshold: SHADOW_CHROMA_THRESHOLD,
             gain_compensation: true,
@@ -231,6 +239,13 @@ impl DetectConfig {
             self.shadow_max_ratio,
             self.shadow_min_ratio..=1.0,
         )?;
+        if self.deep_shadow_min_ratio != 0.0 {
+            check_range(
+                "detect.deep_shadow_min_ratio",
+                self.deep_shadow_min_ratio,
+                0.1..=self.shadow_min_ratio,
+            )?;
+        }
         check_range("detect.chroma_threshold", self.chroma_threshold, 0..=255)?;
         check_range(
             "detect.shadow_chroma_threshold",
@@ -510,6 +525,8 @@ pub struct Detector {
     close_radius: u32,
     close_radius_y: u32,
     shadow_fill_rows: usize,
+    deep_shadow: Option<peel::DeepShadow>,
+    peeled: u32,
     min_area: u32,
 }
 
@@ -550,6 +567,8 @@ impl Detector {
             close_radius: cfg.close_radius,
             close_radius_y: cfg.close_radius_y,
             shadow_fill_rows: cfg.shadow_fill_rows as usize,
+            deep_shadow: peel::DeepShadow::new(cfg.deep_shadow_min_ratio, cfg.shadow_min_ratio),
+            peeled: 0,
             min_area: cfg.min_area(size).max(1),
         }
     }
@@ -585,6 +604,20 @@ impl Detector {
             self.chroma_soft.words_mut(),
             wpr,
         );
+        self.peeled = match self.deep_shadow {
+            Some(band) => peel::peel(
+                &mut self.raw,
+                &frame.luma(),
+                &self.background,
+                &self.chroma_soft,
+                band,
+            ),
+            None => 0,
+        };
+    }
+    /// Deep-shadow pixels [`peel`] dropped from the last frame's raw mask.
+    pub fn peeled(&self) -> u32 {
+        self.peeled
     }
     /// Stage 2: the union of the luma and chroma masks, opened then closed,
     /// into [`Self::mask`].
