@@ -1,6 +1,6 @@
 //! What the live pipeline feeds the calibrator, against the simulated truth.
 //!
-//! `cargo run --release --example live_eval -- [--scene NAME|all] [--seeds 1,2] [--frames N]
+//! `cargo run --release --example live_eval -- [--scene NAME|all|pets] [--seeds 1,2] [--frames N]
 //! [--query 'shadows=0'] [--toml '[detect]\nclose_radius_y = 2']`
 //!
 //! Runs the whole loop on a simulated scene and matches every head/foot
@@ -21,7 +21,14 @@
 //! score, and the tracks on it (`*`: gave a sample that frame); `TRACK=id`,
 //! `FINALS=1`, `SWAP=1`, `KAPPA=1` follow one track, the final heights,
 //! identity swaps and the lean fit; `DUMP=FILE` writes every observation
-//! with its truth as CSV.
+//! with its truth as CSV; `SWAP_TRUE=head,foot_y` calibrates the "live
+//! points" line with those parts of every person observation replaced by
+//! the truth's (parts: `head`, `foot`, `head_x`, `head_y`, `foot_x`,
+//! `foot_y`).
+//!
+//! Always printed besides: track-median heights from the live points under
+//! the true geometry (so calibration error and point error can be told
+//! apart), and the live foot's ground offset by walking direction.
 
 use stature::calibrate::geometry::HeadFoot;
 use stature::calibrate::live::{iou, run_sim};
@@ -91,6 +98,9 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         .ok()
         .map(|v| v.parse().expect("PERSON=id"));
     let mut frame_no = 0u64;
+    // Region box edges minus the truth box's (x0, x1, y0, y1) for the
+    // isolated walkers matched above.
+    let mut box_edges: [Vec<f64>; 4] = Default::default();
     let run = run_sim(&format!("sim:{scene}?{q}"), &cfg, |p, sim| {
         let (w_px, h_px) = (p.frame.size().width as f64, p.frame.size().height as f64);
         let (set, verdicts) = p.regions();
@@ -145,6 +155,15 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
                 continue;
             }
             funnel[1] += 1;
+            let rb = set.regions()[j].bbox;
+            for (acc, d) in box_edges.iter_mut().zip([
+                f64::from(rb.x0) - ob[0],
+                f64::from(rb.x1) - ob[2],
+                f64::from(rb.y0) - ob[1],
+                f64::from(rb.y1) - ob[3],
+            ]) {
+                acc.push(d);
+            }
             if verdicts.get(j).is_some_and(|x| x.single_human) {
                 funnel[2] += 1;
             }
@@ -164,6 +183,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     .expect("scene");
     let st = run.scene.clone();
     let cam = st.camera();
+    let edge_means = box_edges.map(|v| v.iter().sum::<f64>() / v.len().max(1) as f64);
     let events: Vec<Event> = run
         .observations
         .iter()
@@ -187,6 +207,10 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     println!(
         "  isolated walkers: {} person-frames, region IoU>=0.5 {}, called single {}, sampled by a track {}, track on it without a sample {}",
         funnel[0], funnel[1], funnel[2], funnel[3], funnel[4]
+    );
+    println!(
+        "  their region box minus the truth box, mean px: x0 {:+.2} x1 {:+.2} y0 {:+.2} y1 {:+.2}",
+        edge_means[0], edge_means[1], edge_means[2], edge_means[3]
     );
     if let Ok(path) = std::env::var("DUMP") {
         use std::io::Write;
@@ -458,6 +482,8 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         );
     }
     let hs = run.heights();
+    oracle_heights(&run, &events, &cam);
+    offset_by_walk_direction(&run, &events, &cam);
     {
         let maj = run.majority();
         for h in &run.final_heights {
@@ -492,13 +518,21 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     if std::env::var("MISSES").is_ok() {
         recall_misses(&run);
     }
+    let swap = std::env::var("SWAP_TRUE").unwrap_or_default();
     let ccfg = CalibrateConfig {
         camera_height_m: st.camera_height_m,
         ..cfg.calibrate.clone()
     };
-    let live: Vec<(u64, u32, HeadFoot)> =
-        events.iter().map(|e| (e.frame, e.track, e.live)).collect();
-    println!("  live points        {}", calibrate(&live, &ccfg, w, h));
+    let live: Vec<(u64, u32, HeadFoot)> = events
+        .iter()
+        .map(|e| (e.frame, e.track, with_true_parts(e, &swap)))
+        .collect();
+    let label = if swap.is_empty() {
+        "live points       ".to_string()
+    } else {
+        format!("live, true {swap:<6}")
+    };
+    println!("  {label} {}", calibrate(&live, &ccfg, w, h));
     let truth: Vec<(u64, u32, HeadFoot)> = events
         .iter()
         .filter_map(|e| match e.truth {
@@ -622,6 +656,10 @@ fn main() {
             other => panic!("unknown option {other}"),
         }
     }
+    if scene == "pets" {
+        pets(&toml);
+        return;
+    }
     for s in seeds {
         if scene == "all" {
             for spec in stature::source::sim::scene::scenes() {
@@ -630,6 +668,27 @@ fn main() {
         } else {
             run(&scene, s, frames, &extra, &toml);
         }
+    }
+}
+
+/// `--scene pets`: the whole PETS 2009 S2.L1 clip (`../shared/data`)
+/// against its real calibration, as `live_accuracy::pets_*` scores it, with
+/// the `--toml` config.
+fn pets(toml: &str) {
+    let cfg = Config::from_toml(toml).expect("--toml");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    let r = stature::calibrate::live::run_pets(&dir, &cfg).expect("PETS run");
+    let t = &r.truth;
+    let e = r.abs_errors(); // sorted
+    match &r.calibration {
+        Some(c) => println!(
+            "== pets: f {:.0} / {:.0} px, tilt {:.2} / {:.2}, roll {:.2} / {:.2}, camera {:.2} / {:.2} m; {} heights matched ({} not), |err| median {:.3} p90 {:.3} m",
+            c.f_px, t.focal_px, c.tilt_deg, t.tilt_deg, c.roll_deg, t.roll_deg,
+            c.camera_height_m, t.camera_height_m, r.heights.len(), r.unmatched,
+            e.get(e.len() / 2).copied().unwrap_or(f64::NAN),
+            e.get(e.len() * 9 / 10).copied().unwrap_or(f64::NAN),
+        ),
+        None => println!("== pets: no calibration"),
     }
 }
 
@@ -731,4 +790,165 @@ fn recall_misses(run: &stature::calibrate::live::LiveRun) {
             }
         );
     }
+}
+
+/// The live points of `e` with the parts named in `swap` (comma-separated:
+/// `head`, `foot` or one coordinate of them: `head_x`, `head_y`, `foot_x`,
+/// `foot_y`) replaced by the truth's, to tell
+/// which end of the head–foot line a calibration bias comes from.
+fn with_true_parts(e: &Event, swap: &str) -> HeadFoot {
+    let mut l = e.live;
+    if let Some((Kind::Person, _, t, _)) = e.truth {
+        for part in swap.split(',') {
+            match part {
+                "head" => l.head = t.head,
+                "foot" => l.foot = t.foot,
+                "head_x" => l.head[0] = t.head[0],
+                "foot_x" => l.foot[0] = t.foot[0],
+                "head_y" => l.head[1] = t.head[1],
+                "foot_y" => l.foot[1] = t.foot[1],
+                "" => {}
+                other => panic!("SWAP_TRUE: unknown part {other:?}"),
+            }
+        }
+    }
+    l
+}
+
+/// Where a person's height error comes from. Each track's median
+/// per-observation height (observations at least 95 % visible, of the
+/// track's first person) from three sources: the live points under the
+/// *true* geometry and camera height (the default foot offset applied), the
+/// true points under the true geometry (0 by construction: a check), and
+/// the live points under the pipeline's final geometry and camera height.
+/// Printed: median |error| over tracks, the mean signed error, and the
+/// median |error| once that mean is removed (what a perfect global scale
+/// would leave).
+fn oracle_heights(
+    run: &stature::calibrate::live::LiveRun,
+    events: &[Event],
+    cam: &stature::camera::Camera,
+) {
+    use stature::calibrate::geometry::ViewGeometry;
+    let hc = run.scene.camera_height_m;
+    let mut truth_geom = ViewGeometry::of_camera(cam);
+    let exact = truth_geom.ratio_frame();
+    truth_geom.foot_offset = CalibrateConfig::default().foot_offset;
+    let live_true = truth_geom.ratio_frame();
+    let est = run
+        .estimate
+        .as_ref()
+        .map(|e| (e.geom.ratio_frame(), e.camera_height));
+    let mut per: BTreeMap<u32, (u32, [Vec<f64>; 3])> = BTreeMap::new();
+    for e in events {
+        let Some((Kind::Person, id, t, vis)) = e.truth else {
+            continue;
+        };
+        let slot = per.entry(e.track).or_insert((id, Default::default()));
+        if slot.0 != id || vis < 0.95 {
+            continue;
+        }
+        let sources = [
+            live_true.height_ratio(&e.live).map(|r| r * hc),
+            exact.height_ratio(&t).map(|r| r * hc),
+            est.as_ref()
+                .and_then(|(g, h)| g.height_ratio(&e.live).map(|r| r * h)),
+        ];
+        for (v, x) in slot.1.iter_mut().zip(sources) {
+            v.extend(x);
+        }
+    }
+    let mut errs: [Vec<f64>; 3] = Default::default();
+    for (id, v) in per.values_mut() {
+        let Some(th) = run.true_heights.get(id) else {
+            continue;
+        };
+        for (out, v) in errs.iter_mut().zip(v.iter_mut()) {
+            if v.len() >= 8 {
+                v.sort_by(f64::total_cmp);
+                out.push(v[v.len() / 2] - th);
+            }
+        }
+    }
+    let median_abs = |v: &[f64], minus: f64| {
+        let mut a: Vec<f64> = v.iter().map(|e| (e - minus).abs()).collect();
+        a.sort_by(f64::total_cmp);
+        a.get(a.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    print!("  track-median heights (m), |err| median / mean signed / |err| median without the mean, tracks:");
+    for (name, v) in [
+        "true geometry + live points",
+        "true geometry + true points",
+        "estimated geometry + live points",
+    ]
+    .iter()
+    .zip(&errs)
+    {
+        let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
+        print!(
+            "  {name} {:.3} / {m:+.3} / {:.3}, {}",
+            median_abs(v, 0.0),
+            median_abs(v, m),
+            v.len()
+        );
+    }
+    println!();
+}
+
+/// The live foot's ground offset toward the camera (in units of the
+/// person's height, against the true ground point between the feet) by the
+/// angle between the walk (the true foot's motion over 8 observations of
+/// the track) and the camera's ray: `|cos| = 1` walks toward or away from
+/// the camera, 0 across. `calibrate.foot_offset` assumes one value.
+fn offset_by_walk_direction(
+    run: &stature::calibrate::live::LiveRun,
+    events: &[Event],
+    cam: &stature::camera::Camera,
+) {
+    let mut by_track: BTreeMap<u32, Vec<&Event>> = BTreeMap::new();
+    for e in events {
+        by_track.entry(e.track).or_default().push(e);
+    }
+    let mut bins: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
+    for v in by_track.values() {
+        for w in v.windows(9) {
+            let (a, b) = (w[0], w[8]);
+            let (Some((Kind::Person, ia, ta, _)), Some((Kind::Person, ib, tb, vis))) =
+                (a.truth, b.truth)
+            else {
+                continue;
+            };
+            let Some(th) = run.true_heights.get(&ib) else {
+                continue;
+            };
+            let (Some(g0), Some(g1), Some(gl)) = (
+                cam.ground_point(ta.foot),
+                cam.ground_point(tb.foot),
+                cam.ground_point(b.live.foot),
+            ) else {
+                continue;
+            };
+            let walk = [g1[0] - g0[0], g1[1] - g0[1]];
+            let (wl, rl) = (libm::hypot(walk[0], walk[1]), libm::hypot(g1[0], g1[1]));
+            if ia != ib || vis < 0.95 || wl < 0.3 || rl < 1e-6 {
+                continue;
+            }
+            let cos = ((walk[0] * g1[0] + walk[1] * g1[1]) / (wl * rl)).abs();
+            bins.entry((cos * 5.0).min(4.0) as i64)
+                .or_default()
+                .push((rl - libm::hypot(gl[0], gl[1])) / th);
+        }
+    }
+    print!("  foot ground offset toward camera / H by |cos(walk, camera ray)| (median/n):");
+    for (k, v) in bins.iter_mut() {
+        v.sort_by(f64::total_cmp);
+        print!(
+            "  {:.1}-{:.1}: {:+.3}/{}",
+            *k as f64 / 5.0,
+            (*k + 1) as f64 / 5.0,
+            v[v.len() / 2],
+            v.len()
+        );
+    }
+    println!();
 }
