@@ -26,7 +26,8 @@
 #     target: the integer pipeline is bit-exact across targets, and
 #     cross/bitexact.sh checks that on a sample of the same inputs
 #     (byte-identical report streams, heights included, for 1000 frames of
-#     sim:plaza and the PETS clip's first frames; not the other sim scenes),
+#     sim:plaza and the first frames of sim:busy and of the PETS clip;
+#     the other sim scenes only as rendered clips),
 #     so the host's scores hold on ARM. Everything
 #     target-specific still runs: detect_pets:: (the fast path against the
 #     scalar path and the float reference on real video), the golden
