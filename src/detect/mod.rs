@@ -100,8 +100,8 @@ pub struct DetectConfig {
     /// Deep shadows at the feet: a foreground pixel darker than
     /// `shadow_min_ratio` but not darker than this fraction of the
     /// background, with the background's chroma, is dropped when nothing
-    /// but such pixels lies under it in its column (0 = off; see
-    /// [`peel`]; off by default, see there).
+    /// but such pixels lies under it in its column (0 = off, the default;
+    /// see [`peel`]).
     pub deep_shadow_min_ratio: f64,
     /// Chroma term: a pixel whose (Cb, Cr) differs from a running-average
     /// chroma background by more than this L1 distance (grey levels) is
