@@ -482,7 +482,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         );
     }
     let hs = run.heights();
-    oracle_heights(&run, &events, &cam);
+    oracle_heights(&run, &events, &cam, cfg.calibrate.foot_offset);
     offset_by_walk_direction(&run, &events, &cam);
     {
         let maj = run.majority();
@@ -818,7 +818,7 @@ fn with_true_parts(e: &Event, swap: &str) -> HeadFoot {
 /// Where a person's height error comes from. Each track's median
 /// per-observation height (observations at least 95 % visible, of the
 /// track's first person) from three sources: the live points under the
-/// *true* geometry and camera height (the default foot offset applied), the
+/// *true* geometry and camera height (the configured foot offset applied), the
 /// true points under the true geometry (0 by construction: a check), and
 /// the live points under the pipeline's final geometry and camera height.
 /// Printed: median |error| over tracks, the mean signed error, and the
@@ -828,12 +828,13 @@ fn oracle_heights(
     run: &stature::calibrate::live::LiveRun,
     events: &[Event],
     cam: &stature::camera::Camera,
+    foot_offset: f64,
 ) {
     use stature::calibrate::geometry::ViewGeometry;
     let hc = run.scene.camera_height_m;
     let mut truth_geom = ViewGeometry::of_camera(cam);
     let exact = truth_geom.ratio_frame();
-    truth_geom.foot_offset = CalibrateConfig::default().foot_offset;
+    truth_geom.foot_offset = foot_offset;
     let live_true = truth_geom.ratio_frame();
     let est = run
         .estimate

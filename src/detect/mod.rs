@@ -526,7 +526,6 @@ pub struct Detector {
     close_radius_y: u32,
     shadow_fill_rows: usize,
     deep_shadow: Option<peel::DeepShadow>,
-    peeled: u32,
     min_area: u32,
 }
 
@@ -568,7 +567,6 @@ impl Detector {
             close_radius_y: cfg.close_radius_y,
             shadow_fill_rows: cfg.shadow_fill_rows as usize,
             deep_shadow: peel::DeepShadow::new(cfg.deep_shadow_min_ratio, cfg.shadow_min_ratio),
-            peeled: 0,
             min_area: cfg.min_area(size).max(1),
         }
     }
@@ -604,20 +602,15 @@ impl Detector {
             self.chroma_soft.words_mut(),
             wpr,
         );
-        self.peeled = match self.deep_shadow {
-            Some(band) => peel::peel(
+        if let Some(band) = self.deep_shadow {
+            peel::peel(
                 &mut self.raw,
                 &frame.luma(),
                 &self.background,
                 &self.chroma_soft,
                 band,
-            ),
-            None => 0,
-        };
-    }
-    /// Deep-shadow pixels [`peel`] dropped from the last frame's raw mask.
-    pub fn peeled(&self) -> u32 {
-        self.peeled
+            );
+        }
     }
     /// Stage 2: the union of the luma and chroma masks, opened then closed,
     /// into [`Self::mask`].
@@ -665,7 +658,8 @@ impl Detector {
             out.each_mut(|r, runs| extremes::refine(r, runs, before, fp));
         }
     }
-    /// The foreground mask straight from the model (shadows excluded).
+    /// The foreground mask straight from the model (shadows excluded; with
+    /// `detect.deep_shadow_min_ratio` on, deep shadows peeled too).
     pub fn raw_mask(&self) -> &BitMask {
         &self.raw
     }
