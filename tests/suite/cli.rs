@@ -8,14 +8,9 @@ use std::process::{Command, Stdio};
 use crate::common;
 use crate::common::stature_bin;
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("stature-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
-fn write_clip(name: &str, frames: usize) -> std::path::PathBuf {
-    let p = tmp(name);
+/// A synthetic clip of `frames` frames written to `dir/name`.
+fn write_clip(dir: &std::path::Path, name: &str, frames: usize) -> std::path::PathBuf {
+    let p = dir.join(name);
     std::fs::write(
         &p,
         common::synthetic_y4m(
@@ -48,7 +43,8 @@ fn run(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn y4m_file_streams_hello_status_bye_to_stdout_and_udp() {
-    let clip = write_clip("a.y4m", 30);
+    let dir = common::fresh_dir("cli-y4m_file_streams_hello_status_bye_to_stdout_and_udp");
+    let clip = write_clip(&dir, "a.y4m", 30);
     let udp = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     udp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
         .unwrap();
@@ -94,7 +90,8 @@ fn run_from_stdin() -> std::process::Child {
 
 #[test]
 fn stdin_source_reads_a_pipe() {
-    let clip = std::fs::read(write_clip("b.y4m", 12)).unwrap();
+    let dir = common::fresh_dir("cli-stdin_source_reads_a_pipe");
+    let clip = std::fs::read(write_clip(&dir, "b.y4m", 12)).unwrap();
     let mut child = run_from_stdin();
     child.stdin.take().unwrap().write_all(&clip).unwrap();
     let out = child.wait_with_output().unwrap();
@@ -108,7 +105,8 @@ fn stdin_source_reads_a_pipe() {
 
 #[test]
 fn frame_limit_stops_early_with_bye() {
-    let clip = write_clip("c.y4m", 20);
+    let dir = common::fresh_dir("cli-frame_limit_stops_early_with_bye");
+    let clip = write_clip(&dir, "c.y4m", 20);
     let out = run(&[
         "run",
         "--source",
@@ -124,7 +122,9 @@ fn frame_limit_stops_early_with_bye() {
 
 #[test]
 fn truncated_stream_is_exit_2_with_frame_and_offset_and_final_records() {
-    let clip = write_clip("d.y4m", 5);
+    let dir =
+        common::fresh_dir("cli-truncated_stream_is_exit_2_with_frame_and_offset_and_final_records");
+    let clip = write_clip(&dir, "d.y4m", 5);
     let mut bytes = std::fs::read(&clip).unwrap();
     bytes.truncate(bytes.len() - 100);
     std::fs::write(&clip, bytes).unwrap();
@@ -147,13 +147,14 @@ fn truncated_stream_is_exit_2_with_frame_and_offset_and_final_records() {
 
 #[test]
 fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
-    let good = write_clip("e.y4m", 2);
+    let dir = common::fresh_dir("cli-bad_inputs_give_one_clear_line_and_the_right_exit_code");
+    let good = write_clip(&dir, "e.y4m", 2);
     let src = format!("y4m:{}", good.display());
-    let bad_toml = tmp("bad.toml");
+    let bad_toml = dir.join("bad.toml");
     std::fs::write(&bad_toml, "[report]\nqueue = 2\n").unwrap();
-    let unknown = tmp("unknown.toml");
+    let unknown = dir.join("unknown.toml");
     std::fs::write(&unknown, "[detect]\nhistroy = 5\n").unwrap();
-    let garbage = tmp("garbage.y4m");
+    let garbage = dir.join("garbage.y4m");
     std::fs::write(&garbage, b"GIF89a not a y4m\n").unwrap();
     let cases: Vec<(Vec<String>, i32, &str)> = vec![
         (
@@ -233,9 +234,10 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
 
 #[test]
 fn printed_defaults_check_clean_and_postcard_format_is_binary() {
+    let dir = common::fresh_dir("cli-printed_defaults_check_clean_and_postcard_format_is_binary");
     let out = run(&["config", "--print-defaults"]);
     assert!(out.status.success());
-    let p = tmp("defaults.toml");
+    let p = dir.join("defaults.toml");
     std::fs::write(&p, &out.stdout).unwrap();
     let check = run(&["config", "--check", &p.display().to_string()]);
     assert!(
@@ -243,7 +245,7 @@ fn printed_defaults_check_clean_and_postcard_format_is_binary() {
         "{}",
         String::from_utf8_lossy(&check.stderr)
     );
-    let clip = write_clip("f.y4m", 3);
+    let clip = write_clip(&dir, "f.y4m", 3);
     let out = run(&[
         "run",
         "--source",
@@ -339,8 +341,9 @@ fn sigint_stops_cleanly_with_bye() {
 
 #[test]
 fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
-    let path = tmp("run-snapshot.png");
-    let _ = std::fs::remove_file(&path);
+    let dir =
+        common::fresh_dir("cli-run_snapshot_flag_writes_the_final_calibration_over_the_last_frame");
+    let path = dir.join("run-snapshot.png");
     let out = run(&[
         "run",
         "--source",
@@ -366,13 +369,13 @@ fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
         })
     };
     crate::snapshot::assert_horizon_drawn(&pixel, (w, h), horizon);
-    assert!(!tmp("run-snapshot.png.tmp").exists());
+    assert!(!dir.join("run-snapshot.png.tmp").exists());
 }
 
 #[test]
 fn unwritable_snapshot_path_is_exit_3_before_the_run_starts() {
-    let clip = write_clip("snap.y4m", 3);
-    let dir = tmp("");
+    let dir = common::fresh_dir("cli-unwritable_snapshot_path_is_exit_3_before_the_run_starts");
+    let clip = write_clip(&dir, "snap.y4m", 3);
     for (path, want) in [
         ("/nonexistent-dir/x.png".to_string(), "No such file"),
         (dir.display().to_string(), "it is a directory"),
@@ -401,11 +404,11 @@ fn unwritable_snapshot_path_is_exit_3_before_the_run_starts() {
 
 #[test]
 fn snapshot_command_stops_once_the_calibration_is_confident() {
+    let dir = common::fresh_dir("cli-snapshot_command_stops_once_the_calibration_is_confident");
     // With a threshold of 0 the first estimate is confident enough.
-    let cfg = tmp("snap.toml");
+    let cfg = dir.join("snap.toml");
     std::fs::write(&cfg, "[measure]\nmin_confidence = 0.0\n").unwrap();
-    let path = tmp("cmd-snapshot.png");
-    let _ = std::fs::remove_file(&path);
+    let path = dir.join("cmd-snapshot.png");
     let out = run(&[
         "snapshot",
         "--config",

@@ -182,5 +182,4 @@ fn sigkill_during_state_writes_leaves_a_complete_state_file() {
         after.len(),
         complete.len()
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -39,7 +39,7 @@ fn tool(name: &str) -> Option<PathBuf> {
 /// locally; panics under CI.
 /// A broker that lets anyone in, in a fresh directory named after the test;
 /// `None` (the test is skipped, or fails under CI) without the Mosquitto tools.
-fn anonymous_broker(name: &str) -> Option<(PathBuf, Broker)> {
+fn anonymous_broker(name: &str) -> Option<(common::ScratchDir, Broker)> {
     tools(&["mosquitto", "mosquitto_sub", "mosquitto_pub"])?;
     let dir = temp_dir(name);
     let broker = Broker::start(&dir, "allow_anonymous true\n");
@@ -70,7 +70,7 @@ fn tools(names: &[&str]) -> Option<Vec<PathBuf>> {
 
 /// A fresh directory the broker can write to and read from: started as
 /// root, Mosquitto drops to its own user.
-fn temp_dir(name: &str) -> PathBuf {
+fn temp_dir(name: &str) -> common::ScratchDir {
     use std::os::unix::fs::PermissionsExt;
     let d = common::fresh_dir(&format!("mqtt-{name}"));
     std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o777)).unwrap();
@@ -480,7 +480,7 @@ fn drive(
 
 #[test]
 fn every_record_arrives_on_its_topic_as_schema_v1_json() {
-    let Some((_, broker)) = anonymous_broker("every") else {
+    let Some((_dir, broker)) = anonymous_broker("every") else {
         return;
     };
     // JSON and postcard runs: MQTT payloads are JSON either way.
@@ -553,7 +553,7 @@ fn every_record_arrives_on_its_topic_as_schema_v1_json() {
 
 #[test]
 fn late_subscribers_see_retained_state_and_home_assistant_discovery() {
-    let Some((_, broker)) = anonymous_broker("retained") else {
+    let Some((_dir, broker)) = anonymous_broker("retained") else {
         return;
     };
     let prefix = "stature/lobby";
@@ -680,7 +680,7 @@ fn late_subscribers_see_retained_state_and_home_assistant_discovery() {
 
 #[test]
 fn a_killed_camera_is_marked_offline_by_its_last_will() {
-    let Some((_, broker)) = anonymous_broker("will") else {
+    let Some((_dir, broker)) = anonymous_broker("will") else {
         return;
     };
     let prefix = "stature/gate";

@@ -192,5 +192,4 @@ fn sim_run_snapshot_shows_the_estimated_horizon_and_every_live_track() {
     let (size, bytes) = read_png(&path);
     assert_eq!(size, (640, 480));
     assert!(bytes == c.rgb());
-    std::fs::remove_dir_all(&dir).ok();
 }
