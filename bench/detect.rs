@@ -39,7 +39,7 @@ fn measured(det: &mut Detector, frames: &[Frame], out: &mut RegionSet, t: &mut T
         let t0 = Instant::now();
         segment(det, f);
         let t1 = Instant::now();
-        clean(det);
+        clean(det, f);
         let t2 = Instant::now();
         label(det, out);
         let t3 = Instant::now();
@@ -56,8 +56,8 @@ fn segment(det: &mut Detector, f: &Frame) {
     det.segment(black_box(f));
 }
 #[inline(never)]
-fn clean(det: &mut Detector) {
-    det.clean_up();
+fn clean(det: &mut Detector, f: &Frame) {
+    det.clean_up(black_box(f));
 }
 #[inline(never)]
 fn label(det: &mut Detector, out: &mut RegionSet) {

@@ -582,7 +582,7 @@ impl Detector {
             return;
         }
         self.segment(frame);
-        self.clean_up();
+        self.clean_up(frame);
         self.label(out);
     }
     /// Stage 1: updates the background models and fills [`Self::raw_mask`]
@@ -602,19 +602,12 @@ impl Detector {
             self.chroma_soft.words_mut(),
             wpr,
         );
-        if let Some(band) = self.deep_shadow {
-            peel::peel(
-                &mut self.raw,
-                &frame.luma(),
-                &self.background,
-                &self.chroma_soft,
-                band,
-            );
-        }
     }
-    /// Stage 2: the union of the luma and chroma masks, opened then closed,
-    /// into [`Self::mask`].
-    pub fn clean_up(&mut self) {
+    /// Stage 2: the union of the luma and chroma masks of `frame` (the one
+    /// [`Self::segment`] saw), deep shadows peeled off its bottom when
+    /// `detect.deep_shadow_min_ratio` is on, opened then closed, into
+    /// [`Self::mask`].
+    pub fn clean_up(&mut self, frame: &Frame) {
         self.clean.copy_from(&self.raw);
         if self.chroma.enabled() {
             let it = self
@@ -626,6 +619,18 @@ impl Detector {
             for ((c, &f), (&sh, &soft)) in it {
                 *c |= f | (sh & soft);
             }
+        }
+        // On the union: a chroma-only pixel (a shoe whose colour changed
+        // but not its luma) must stop the peel above it.
+        if let Some(band) = self.deep_shadow {
+            let luma = frame.luma();
+            peel::peel(
+                &mut self.clean,
+                &luma,
+                &self.background,
+                &self.chroma_soft,
+                band,
+            );
         }
         let (o, cx, cy) = (self.open_radius, self.close_radius, self.close_radius_y);
         if self.refine_extremes {
@@ -658,8 +663,7 @@ impl Detector {
             out.each_mut(|r, runs| extremes::refine(r, runs, before, fp));
         }
     }
-    /// The foreground mask straight from the model (shadows excluded; with
-    /// `detect.deep_shadow_min_ratio` on, deep shadows peeled too).
+    /// The foreground mask straight from the luma model (shadows excluded).
     pub fn raw_mask(&self) -> &BitMask {
         &self.raw
     }
