@@ -117,6 +117,10 @@ fn main() {
             "--check" => check = true,
             // Price another `detect.update_interval` without a rebuild.
             "--interval" => cfg.update_interval = args.next().expect("n").parse().expect("n"),
+            // Price `detect.deep_shadow_min_ratio` (0 = the peel off).
+            "--deep-shadow" => {
+                cfg.deep_shadow_min_ratio = args.next().expect("ratio").parse().expect("ratio")
+            }
             "--bench" => {}
             _ => {}
         }

@@ -99,11 +99,12 @@ fn shadows_do_not_grow_boxes() {
     let (without, _) = run("sim:plaza?seed=1&shadows=0", false);
     report("sim:plaza shadows=1", &with, 1.0);
     report("sim:plaza shadows=0", &without, 1.0);
-    // Measured: mean IoU 0.818 with shadows vs 0.858 without; matched
-    // 96.5 % vs 96.7 % (L1 chroma term alone: 0.637 vs 0.706, 74.8 % vs
-    // 81.2 %; luma only: 0.409 vs 0.425, 25.5 % vs 30.2 %).
+    // Measured: mean IoU 0.856 with shadows vs 0.858 without; matched
+    // 96.2 % vs 96.8 % (without the deep-shadow peel 0.818 vs 0.858; the
+    // L1 chroma term alone: 0.637 vs 0.706, 74.8 % vs 81.2 %; luma only:
+    // 0.409 vs 0.425, 25.5 % vs 30.2 %).
     assert!(
-        with.mean_iou() >= without.mean_iou() - 0.07,
+        with.mean_iou() >= without.mean_iou() - 0.03,
         "{with:?} vs {without:?}"
     );
     assert!(
@@ -118,10 +119,10 @@ fn shadows_do_not_grow_boxes() {
 fn sim_other_scenes() {
     // (scene, matched floor, false/frame ceiling) // measured
     for (uri, floor, ceiling) in [
-        ("sim:mid?seed=1", 0.9, 0.4),   // 97.2 %, 0.20
+        ("sim:mid?seed=1", 0.9, 0.4),   // 96.7 %, 0.17
         ("sim:high?seed=1", 0.88, 0.6), // 93.8 %, 0.44
-        ("sim:wide?seed=1", 0.7, 0.3),  // 76.6 %, 0.16
-        ("sim:busy?seed=1", 0.76, 2.0), // 83.7 %, 1.51
+        ("sim:wide?seed=1", 0.7, 0.3),  // 76.0 %, 0.16
+        ("sim:busy?seed=1", 0.8, 2.0),  // 86.1 %, 1.40
     ] {
         let (s, _) = run(uri, false);
         report(uri, &s, 1.0);
