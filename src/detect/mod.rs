@@ -170,7 +170,7 @@ const UPDATE_INTERVAL: u32 = 8;
 const SHADOW_CHROMA_THRESHOLD: u32 = 8;
 /// Default `deep_shadow_min_ratio` (see `bench/RESULTS.md`, "Deep shadows
 /// peeled off the feet": better roll, heights and box fit on the sim and
-/// heights on PETS, +0.56 instr/px at 1280×720).
+/// heights on PETS, +0.28 instr/px at 1280×720).
 const DEEP_SHADOW_MIN_RATIO: f64 = 0.58;
 
 impl Default for DetectConfig {

@@ -22,7 +22,7 @@
 //!
 //! On by default at 0.58 (`detect.deep_shadow_min_ratio`; 0 turns it off):
 //! measured, it improves roll, heights and box fit on the simulated runs
-//! and heights on PETS, for +0.56 instructions per pixel at 1280×720
+//! and heights on PETS, for +0.28 instructions per pixel at 1280×720
 //! (bench/RESULTS.md, "Deep shadows peeled off the feet").
 
 use super::background::Background;
@@ -67,28 +67,29 @@ pub fn peel(
     band: DeepShadow,
 ) -> u32 {
     let (h, wpr) = (mask.height(), mask.words_per_row());
+    let changed = chroma_changed.words();
+    let words = mask.words_mut();
     let mut cleared = 0;
+    // Bottom row first: a row's ends depend on the row under it as peeled.
     for y in (0..h).rev() {
-        let row = luma.row(y);
-        for i in 0..wpr {
-            let below = if y + 1 < h {
-                mask.words()[(y + 1) * wpr + i]
-            } else {
-                0
-            };
-            let word = mask.words()[y * wpr + i];
-            let mut ends = word & !below & !chroma_changed.words()[y * wpr + i];
-            let mut keep = word;
+        let luma_row = luma.row(y);
+        let (upto, under) = words.split_at_mut((y + 1) * wpr);
+        let row = &mut upto[y * wpr..];
+        let below = under.get(..wpr);
+        let changed_row = &changed[y * wpr..(y + 1) * wpr];
+        for (i, (word, &chroma)) in row.iter_mut().zip(changed_row).enumerate() {
+            let mut ends = *word & !below.map_or(0, |b| b[i]) & !chroma;
+            // Most words hold no foreground, or only pixels with foreground
+            // under them.
             while ends != 0 {
                 let bit = ends.trailing_zeros() as usize;
                 ends &= ends - 1;
                 let x = i * 64 + bit;
-                if band.is_deep(row[x], background.background_mean(x, y)) {
-                    keep &= !(1u64 << bit);
+                if band.is_deep(luma_row[x], background.background_mean(x, y)) {
+                    *word &= !(1u64 << bit);
                     cleared += 1;
                 }
             }
-            mask.words_mut()[y * wpr + i] = keep;
         }
     }
     cleared
