@@ -35,7 +35,10 @@
 //!   chroma differs by more than the stricter `shadow_chroma_threshold` is
 //!   foreground too (a shadow darkens, it does not recolour). A candidate
 //!   with foreground within `shadow_fill_rows` above and below it in its
-//!   column is foreground (grey trousers under a shirt).
+//!   column is foreground (grey trousers under a shirt). Darker than
+//!   shadow (0.58–0.65, chroma unchanged) at the bottom of a column, with
+//!   nothing but such pixels under it, is a sun shadow's core at the feet
+//!   and is peeled off before the opening ([`peel`]).
 //! * Regions: after opening, fill and closing, a region whose column
 //!   profile has a deep valley between two person-tall peaks is cut there
 //!   (`split_valley`: people walking side by side).
