@@ -85,7 +85,7 @@ impl Rng {
     /// The sum is the one `s += uniform()` twelve times gives, bit for bit,
     /// computed on integers: each uniform is `k·2⁻⁵³` with `k < 2⁵³`, so
     /// every float partial sum is the exact integer sum rounded to 53
-    /// significant bits, half to even, which [`round_to_53_bits`] does.
+    /// significant bits, half to even, which `round_to_53_bits` does.
     /// Without a float unit (and under emulation, where each float
     /// operation is a library call) this is several times cheaper, and
     /// the noise table of a scene is one draw per pixel.
