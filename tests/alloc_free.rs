@@ -60,8 +60,7 @@ fn steady_state_loop_allocates_nothing() {
             },
             ..Default::default()
         };
-        let dir = std::env::temp_dir().join(format!("stature-alloc-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = common::fresh_dir("alloc");
         let out = dir.join("records.bin");
         let sinks =
             vec![sink::Sink::open(&sink::SinkSpec::File(out.display().to_string())).unwrap()];
@@ -96,7 +95,6 @@ fn steady_state_loop_allocates_nothing() {
             .unwrap();
         assert_eq!(total, 0, "{name}: {total} allocations in {MEASURED} steady-state frames (worst: frame {} with {})", worst.0 as u64 + WARM_UP, worst.1);
         assert_eq!(p.frames, WARM_UP + MEASURED);
-        std::fs::remove_dir_all(&dir).ok();
     }
 }
 
@@ -117,8 +115,7 @@ fn status_records_report_zero_allocations() {
     let mut cfg = Config::default();
     cfg.report.status_interval_s = 2.0; // every 50 frames at 25 fps
     cfg.report.format = Format::Postcard;
-    let dir = std::env::temp_dir().join(format!("stature-alloc-status-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::fresh_dir("alloc-status");
     let out = dir.join("records.bin");
     let sinks = vec![sink::Sink::open(&sink::SinkSpec::File(out.display().to_string())).unwrap()];
     let (mut reporter, rx, counters) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
@@ -152,5 +149,4 @@ fn status_records_report_zero_allocations() {
     for (frame, n) in &statuses[1..] {
         assert_eq!(*n, warm, "allocations grew by frame {frame}: {statuses:?}");
     }
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -240,8 +240,7 @@ fn a_blob_of_the_previous_format_is_refused_by_name() {
 
 #[test]
 fn bad_weights_file_stops_the_binary_with_a_clear_message() {
-    let dir = std::env::temp_dir().join(format!("stature-classify-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::fresh_dir("classify");
     let path = dir.join("bad.bin");
     let mut b = BUILTIN_WEIGHTS.to_vec();
     b[100] ^= 0x40;
@@ -268,5 +267,4 @@ fn bad_weights_file_stops_the_binary_with_a_clear_message() {
     // A good copy of the built-in blob is accepted from a file.
     std::fs::write(&path, BUILTIN_WEIGHTS).unwrap();
     assert!(cfg.validate().is_ok());
-    std::fs::remove_dir_all(&dir).ok();
 }
