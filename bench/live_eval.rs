@@ -26,6 +26,10 @@
 //! the truth's (parts: `head`, `foot`, `head_x`, `head_y`, `foot_x`,
 //! `foot_y`).
 //!
+//! Many runs (`--scene all --seeds 1,2,...`) are summarised by
+//! `python3 bench/live_summary.py OUTPUT...` (the figures bench/RESULTS.md
+//! quotes: f, tilt, roll, camera height, heights, recall).
+//!
 //! Always printed besides: track-median heights from the live points under
 //! the true geometry (so calibration error and point error can be told
 //! apart), and the live foot's ground offset by walking direction.
@@ -482,7 +486,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         );
     }
     let hs = run.heights();
-    oracle_heights(&run, &events, &cam, cfg.calibrate.foot_offset);
+    oracle_heights(&run, &events, &cam, &cfg.calibrate);
     offset_by_walk_direction(&run, &events, &cam);
     {
         let maj = run.majority();
@@ -523,6 +527,15 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         camera_height_m: st.camera_height_m,
         ..cfg.calibrate.clone()
     };
+    // A true head row is the crown itself: no back of the head to undo.
+    let swap_cfg = CalibrateConfig {
+        head_radius: if swap.split(',').any(|p| p == "head" || p == "head_y") {
+            0.0
+        } else {
+            ccfg.head_radius
+        },
+        ..ccfg.clone()
+    };
     let live: Vec<(u64, u32, HeadFoot)> = events
         .iter()
         .map(|e| (e.frame, e.track, with_true_parts(e, &swap)))
@@ -532,7 +545,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     } else {
         format!("live, true {swap:<6}")
     };
-    println!("  {label} {}", calibrate(&live, &ccfg, w, h));
+    println!("  {label} {}", calibrate(&live, &swap_cfg, w, h));
     let truth: Vec<(u64, u32, HeadFoot)> = events
         .iter()
         .filter_map(|e| match e.truth {
@@ -543,6 +556,7 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
     // True foot points are under the head: no foot offset to undo.
     let tcfg = CalibrateConfig {
         foot_offset: 0.0,
+        head_radius: 0.0,
         ..ccfg.clone()
     };
     println!("  true points, same  {}", calibrate(&truth, &tcfg, w, h));
@@ -828,13 +842,14 @@ fn oracle_heights(
     run: &stature::calibrate::live::LiveRun,
     events: &[Event],
     cam: &stature::camera::Camera,
-    foot_offset: f64,
+    ccfg: &CalibrateConfig,
 ) {
     use stature::calibrate::geometry::ViewGeometry;
     let hc = run.scene.camera_height_m;
     let mut truth_geom = ViewGeometry::of_camera(cam);
     let exact = truth_geom.ratio_frame();
-    truth_geom.foot_offset = foot_offset;
+    truth_geom.foot_offset = ccfg.foot_offset;
+    truth_geom.head_radius = ccfg.head_radius;
     let live_true = truth_geom.ratio_frame();
     let est = run
         .estimate

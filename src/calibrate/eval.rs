@@ -104,6 +104,7 @@ pub fn evaluate(
         &CalibrateConfig {
             prior_height_m: mean,
             foot_offset: 0.0,
+            head_radius: 0.0,
             ..Default::default()
         },
         w,
@@ -114,6 +115,7 @@ pub fn evaluate(
         &CalibrateConfig {
             camera_height_m: camera_height,
             foot_offset: 0.0,
+            head_radius: 0.0,
             ..Default::default()
         },
         w,

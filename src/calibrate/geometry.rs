@@ -12,7 +12,9 @@
 //! skew, principal point at the image centre, no lens distortion, flat
 //! ground, upright people whose lowest image point is the edge of their
 //! feet nearest the camera ([`ViewGeometry::foot_offset`] of their height
-//! from the point under the head). Under them the principal point lies on the
+//! from the point under the head) and whose highest image point is where
+//! the camera's ray grazes the back of a round head
+//! ([`ViewGeometry::head_radius`]). Under them the principal point lies on the
 //! perpendicular from the vertical vanishing point `v` to the horizon, so
 //! once `v` is known the horizon has a single unknown, its distance `d`
 //! from the principal point; `f² = d·|v−p|` (eq. 3).
@@ -175,6 +177,9 @@ pub struct ViewGeometry {
     /// head, toward the camera, as a fraction of the person's height (see
     /// [`ViewGeometry::height_ratio`]); 0 for exact foot points.
     pub foot_offset: f64,
+    /// Radius of the top of the head, as a fraction of the person's
+    /// height (see [`ViewGeometry::height_ratio`]); 0 for exact crowns.
+    pub head_radius: f64,
 }
 
 impl ViewGeometry {
@@ -192,6 +197,7 @@ impl ViewGeometry {
             ],
             d: d * norm.s,
             foot_offset: 0.0,
+            head_radius: 0.0,
         };
         (g.r() > 1e-6 && g.d > 0.0 && g.v[0].is_finite() && g.v[1].is_finite()).then_some(g)
     }
@@ -205,6 +211,7 @@ impl ViewGeometry {
             v,
             d,
             foot_offset: 0.0,
+            head_radius: 0.0,
         }
     }
 
@@ -271,6 +278,21 @@ impl ViewGeometry {
     /// the line `foot → v`, away from `v`. The shift depends on the height
     /// it corrects; three fixed-point steps settle it (each one shrinks the
     /// change by the factor `κ·∂shift/∂h`, well under 0.1).
+    ///
+    /// With a [`ViewGeometry::head_radius`] `η`, the head point is taken as
+    /// the top of a ball of radius `η·h` whose crown is the person's
+    /// height: a camera looking down sees past the crown to the back of
+    /// the head, where its ray grazes the ball, so the silhouette's top
+    /// reads `η·h·(1 − cos α)` taller (in the image's vertical at the
+    /// head's depth; `α` the ray's angle below level). Near people are seen
+    /// more steeply than far ones, so uncorrected the extents grow faster
+    /// with nearness than the heights do, which the horizon fit reads as a
+    /// horizon too close to the people (f too short). The grazing point
+    /// lies in the vertical plane through the camera and the person, whose
+    /// image is the line through `v`, so it sits on the head–foot line:
+    /// the cross ratio gives the height of the point on the person's
+    /// vertical that the ray through the grazing point crosses, and the
+    /// same fixed-point steps solve for the crown.
     pub fn height_ratio(&self, o: &HeadFoot) -> Option<f64> {
         self.ratio_frame().height_ratio(o)
     }
@@ -285,6 +307,7 @@ impl ViewGeometry {
             v: self.v,
             d: self.d,
             foot_offset: self.foot_offset,
+            head_radius: self.head_radius,
             ground: self.ground_frame(),
         }
     }
@@ -347,6 +370,7 @@ pub struct RatioFrame {
     v: [f64; 2],
     d: f64,
     foot_offset: f64,
+    head_radius: f64,
     ground: GroundFrame,
 }
 
@@ -354,12 +378,33 @@ impl RatioFrame {
     /// [`ViewGeometry::height_ratio`] of the view this was made from.
     pub fn height_ratio(&self, o: &HeadFoot) -> Option<f64> {
         let mut r = self.cross_ratio(o.head, o.foot)?;
-        if self.foot_offset > 0.0 {
-            for _ in 0..3 {
-                let shift = self.foot_offset * r.max(0.0);
-                let foot = self.ground.foot_under_head(o.foot, shift)?;
-                r = self.cross_ratio(o.head, foot)?;
-            }
+        if self.foot_offset <= 0.0 && self.head_radius <= 0.0 {
+            return Some(r);
+        }
+        // The head's terms and the foot's ground point (camera heights),
+        // once for all the steps.
+        let (head_below, hv) = (self.below_horizon(o.head), dist(o.head, self.v));
+        let (g, rho) = self.ground.ground_point(o.foot)?;
+        // How much taller the back of the head reads than the crown, taken
+        // once at the first estimate: it changes with the height by about
+        // its own 1–6 %, so the steps below would move it by under a
+        // millimetre (6 mm for someone 2 m under a 7 m camera), and it is
+        // the costliest part of a height (the horizon fit takes thousands
+        // per refit).
+        let back_of_head = if self.head_radius > 0.0 {
+            let shift = self.foot_offset * r.max(0.0);
+            grazing_ratio(r, self.head_radius * r.max(0.0), rho + shift) - r
+        } else {
+            0.0
+        };
+        for _ in 0..3 {
+            let shift = self.foot_offset * r.max(0.0);
+            let foot = if self.foot_offset > 0.0 {
+                self.ground.shifted(o.foot, g, rho, shift)?
+            } else {
+                o.foot
+            };
+            r = self.cross_ratio_from(head_below, hv, foot)? - back_of_head;
         }
         Some(r)
     }
@@ -371,12 +416,17 @@ impl RatioFrame {
     }
 
     fn cross_ratio(&self, head: [f64; 2], foot: [f64; 2]) -> Option<f64> {
+        self.cross_ratio_from(self.below_horizon(head), dist(head, self.v), foot)
+    }
+
+    /// [`RatioFrame::cross_ratio`] with the head's distances below the
+    /// horizon and from `v` given (the same for every step of a height).
+    fn cross_ratio_from(&self, head_below: f64, hv: f64, foot: [f64; 2]) -> Option<f64> {
         let df = self.below_horizon(foot);
-        let hv = dist(head, self.v);
         if df <= 1e-9 || hv <= 1e-9 {
             return None;
         }
-        let r = 1.0 - self.below_horizon(head) * dist(foot, self.v) / (df * hv);
+        let r = 1.0 - head_below * dist(foot, self.v) / (df * hv);
         r.is_finite().then_some(r)
     }
 }
@@ -394,8 +444,33 @@ struct GroundFrame {
     ct: f64,
 }
 
+/// The height ratio (to the camera's) that the cross ratio reads for a
+/// person whose crown is at ratio `r`, with a head ball of radius `radius`
+/// and the body's axis `rho` from the nadir (all in camera heights): the
+/// height at which the ray through the ball's grazing top point crosses
+/// the person's vertical (see [`ViewGeometry::height_ratio`]).
+fn grazing_ratio(r: f64, radius: f64, rho: f64) -> f64 {
+    let centre = r - radius;
+    let drop = 1.0 - centre; // camera above the ball's centre
+    let ray = (rho * rho + drop * drop).sqrt();
+    if ray <= 1e-12 {
+        return r;
+    }
+    // The grazing point: `radius` from the centre, perpendicular to the
+    // ray and upward in the image (away from the camera when it looks down).
+    let (sin_a, cos_a) = (drop / ray, rho / ray);
+    let (out, up) = (rho + radius * sin_a, centre + radius * cos_a);
+    if out <= 1e-12 {
+        return r; // straight under the camera: no vertical to cross
+    }
+    1.0 - (1.0 - up) * rho / out
+}
+
 impl GroundFrame {
-    fn foot_under_head(&self, foot: [f64; 2], shift: f64) -> Option<[f64; 2]> {
+    /// The ground point seen at `foot` (lateral, forward from the nadir, in
+    /// camera heights) and its distance from the nadir; `None` at or above
+    /// the horizon.
+    fn ground_point(&self, foot: [f64; 2]) -> Option<([f64; 2], f64)> {
         let (a, across, f, st, ct) = (self.axis, self.across, self.f, self.st, self.ct);
         let q = [foot[0] - self.p[0], foot[1] - self.p[1]];
         let (x, y) = (
@@ -407,7 +482,18 @@ impl GroundFrame {
             return None; // at or above the horizon
         }
         let g = [x / down, (f * ct - y * st) / down];
-        let rho = (g[0] * g[0] + g[1] * g[1]).sqrt();
+        Some((g, (g[0] * g[0] + g[1] * g[1]).sqrt()))
+    }
+
+    fn foot_under_head(&self, foot: [f64; 2], shift: f64) -> Option<[f64; 2]> {
+        let (g, rho) = self.ground_point(foot)?;
+        self.shifted(foot, g, rho, shift)
+    }
+
+    /// [`GroundFrame::foot_under_head`] from the ground point `g` (at `rho`
+    /// from the nadir) that `foot` sees.
+    fn shifted(&self, foot: [f64; 2], g: [f64; 2], rho: f64, shift: f64) -> Option<[f64; 2]> {
+        let (a, across, f, st, ct) = (self.axis, self.across, self.f, self.st, self.ct);
         if rho <= 1e-9 {
             return Some(foot); // under the camera: no direction to move in
         }
@@ -473,6 +559,73 @@ mod tests {
             let raw = exact.height_ratio(&HeadFoot { head, foot: seen }).unwrap();
             assert!(raw * cam.height > h + 0.02, "{}", raw * cam.height);
         }
+    }
+
+    /// The top-most image point of a ball (sampled densely on its surface,
+    /// not from the grazing formula).
+    fn top_of_ball(cam: &Camera, centre: [f64; 3], radius: f64) -> [f64; 2] {
+        let mut top = [0.0, f64::INFINITY];
+        for i in 0..=400 {
+            let polar = core::f64::consts::PI * f64::from(i) / 400.0;
+            for j in 0..400 {
+                let az = core::f64::consts::TAU * f64::from(j) / 400.0;
+                let (sp, cp) = (libm::sin(polar), libm::cos(polar));
+                let q = [
+                    centre[0] + radius * sp * libm::cos(az),
+                    centre[1] + radius * sp * libm::sin(az),
+                    centre[2] + radius * cp,
+                ];
+                // Only the side facing the camera is seen.
+                let n = [q[0] - centre[0], q[1] - centre[1], q[2] - centre[2]];
+                let to_cam = [-q[0], -q[1], cam.height - q[2]];
+                if n[0] * to_cam[0] + n[1] * to_cam[1] + n[2] * to_cam[2] < 0.0 {
+                    continue;
+                }
+                let px = cam.project(q).unwrap();
+                if px[1] < top[1] {
+                    top = px;
+                }
+            }
+        }
+        top
+    }
+
+    #[test]
+    fn head_radius_undoes_the_back_of_the_head_seen_from_above() {
+        let cam = Camera::centred(700.0, 32.0, 3.0, 5.0, 640, 480);
+        let exact = ViewGeometry::of_camera(&cam);
+        let g = ViewGeometry {
+            head_radius: 0.05,
+            foot_offset: 0.08,
+            ..exact
+        };
+        let mut gains = Vec::new();
+        for (x, y, h) in [(0.3, 5.0, 1.75), (-2.5, 8.0, 1.6), (2.0, 16.0, 1.9)] {
+            let radius = 0.05 * h;
+            let head = top_of_ball(&cam, [x, y, h - radius], radius);
+            let rho = (x * x + y * y).sqrt();
+            let k = 1.0 - 0.08 * h / rho;
+            let foot = cam.project([x * k, y * k, 0.0]).unwrap();
+            let seen = HeadFoot { head, foot };
+            let r = g.height_ratio(&seen).unwrap();
+            // The sampling grid puts the top within a few mm of the ball's.
+            assert!(
+                (r * cam.height - h).abs() < 4e-3,
+                "{} vs {h}",
+                r * cam.height
+            );
+            let feet_only = ViewGeometry {
+                head_radius: 0.0,
+                ..g
+            };
+            let raw = feet_only.height_ratio(&seen).unwrap() * cam.height - h;
+            assert!(raw > 0.001, "the back of the head reads tall: {raw}");
+            gains.push(raw / h);
+        }
+        // Nearer people are seen more steeply: more of the head's back
+        // (1 cm and more at 5 m from a 5 m high camera).
+        assert!(gains[0] > gains[1] && gains[1] > gains[2], "{gains:?}");
+        assert!(gains[0] * 1.75 > 0.01, "{gains:?}");
     }
 
     #[test]

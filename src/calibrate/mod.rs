@@ -59,6 +59,11 @@ pub struct CalibrateConfig {
     /// as a fraction of the person's height ([`ViewGeometry::foot_offset`]):
     /// half a foot length is about 0.075 of the stature.
     pub foot_offset: f64,
+    /// Radius of the top of the head as a fraction of the person's height
+    /// ([`ViewGeometry::head_radius`]): a camera looking down sees the
+    /// back of the head above the crown. Half the head's length or
+    /// breadth is 0.045–0.056 of the stature.
+    pub head_radius: f64,
     /// Random line pairs tried for the vanishing point's starting point.
     pub ransac_iterations: usize,
     /// A track adds an anchor after its foot moved this far, pixels.
@@ -92,6 +97,7 @@ impl Default for CalibrateConfig {
             reference_height_m: 0.0,
             lean: true,
             foot_offset: 0.08,
+            head_radius: 0.05,
             ransac_iterations: 300,
             anchor_step_px: 6.0,
             anchors_per_track: 32,
@@ -122,6 +128,7 @@ impl CalibrateConfig {
             0.0..=2.5,
         )?;
         check_range("calibrate.foot_offset", self.foot_offset, 0.0..=0.3)?;
+        check_range("calibrate.head_radius", self.head_radius, 0.0..=0.15)?;
         check_range(
             "calibrate.ransac_iterations",
             self.ransac_iterations,
@@ -593,6 +600,7 @@ impl Calibrator {
             return;
         };
         g0.foot_offset = self.cfg.foot_offset;
+        g0.head_radius = self.cfg.head_radius;
         let Some(hfit) = horizon::fit_horizon(
             &self.flat,
             &self.flat_slot,

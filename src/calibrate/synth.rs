@@ -3,8 +3,10 @@
 //! by the vision loop). People walk straight lines at 1.0–1.6 m/s, their
 //! head bobs by up to 2 cm with the gait, the foot point is the edge of
 //! the feet nearest the camera (as a silhouette's lowest pixels are; see
-//! [`super::geometry::ViewGeometry::foot_offset`]), and image points get
-//! Gaussian pixel noise.
+//! [`super::geometry::ViewGeometry::foot_offset`]), the head point is the
+//! top of a round head as a camera looking down sees it (the back of the
+//! head: [`super::geometry::ViewGeometry::head_radius`]), and image points
+//! get Gaussian pixel noise.
 
 use super::geometry::HeadFoot;
 use crate::camera::Camera;
@@ -44,6 +46,10 @@ pub struct SynthScene {
     /// toward the camera's nadir, as a fraction of the person's height
     /// (the calibrator's default `foot_offset`; 0 puts it under the head).
     pub foot_offset: f64,
+    /// Radius of the head's top as a fraction of the person's height (the
+    /// calibrator's default `head_radius`; 0 puts the head point on the
+    /// crown).
+    pub head_radius: f64,
 }
 
 impl Default for SynthScene {
@@ -57,6 +63,7 @@ impl Default for SynthScene {
             noise_px: 0.7,
             fps: 10.0,
             foot_offset: 0.08,
+            head_radius: 0.05,
         }
     }
 }
@@ -73,6 +80,23 @@ pub fn random_camera(rng: &mut Rng, width: usize, height: usize) -> Camera {
         width,
         height,
     )
+}
+
+/// Where the camera's ray grazes the top of a ball of `radius` whose crown
+/// is `crown` metres above the ground point `pos` (world coordinates): the
+/// head's highest image point as a camera looking down sees it.
+fn grazing_top(cam: &Camera, pos: [f64; 2], crown: f64, radius: f64) -> [f64; 3] {
+    let rho = (pos[0] * pos[0] + pos[1] * pos[1]).sqrt();
+    let centre = crown - radius;
+    let drop = cam.height - centre;
+    let ray = (rho * rho + drop * drop).sqrt();
+    if rho <= 1e-9 || ray <= 1e-9 {
+        return [pos[0], pos[1], crown];
+    }
+    // Perpendicular to the ray in the vertical plane through the camera,
+    // upward: away from the camera by sin, up by cos of the ray's dip.
+    let out = 1.0 + radius * (drop / ray) / rho;
+    [pos[0] * out, pos[1] * out, centre + radius * rho / ray]
 }
 
 /// Walks `scene.people` people through `cam`'s view; observations where
@@ -110,7 +134,12 @@ pub fn walk(cam: &Camera, scene: &SynthScene, rng: &mut Rng) -> Vec<SynthObs> {
             let near = (1.0 - scene.foot_offset * height / rho.max(1e-9)).max(0.0);
             let (Some(foot), Some(head)) = (
                 cam.project([pos[0] * near, pos[1] * near, 0.0]),
-                cam.project([pos[0], pos[1], height + bob]),
+                cam.project(grazing_top(
+                    cam,
+                    pos,
+                    height + bob,
+                    scene.head_radius * height,
+                )),
             ) else {
                 break;
             };
