@@ -70,7 +70,7 @@ where
 }
 
 /// The whole configuration.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Config {
     /// Where frames come from.
@@ -91,22 +91,6 @@ pub struct Config {
     pub measure: crate::measure::MeasureConfig,
     /// The board this profile is for, and its resource caps.
     pub board: BoardConfig,
-}
-
-impl Default for Config {
-    fn default() -> Self {
-        Config {
-            source: SourceConfig::default(),
-            report: ReportConfig::default(),
-            run: RunConfig::default(),
-            detect: Default::default(),
-            classify: Default::default(),
-            track: Default::default(),
-            calibrate: Default::default(),
-            measure: Default::default(),
-            board: BoardConfig::default(),
-        }
-    }
 }
 
 /// `[source]`
@@ -168,7 +152,7 @@ impl Default for ReportConfig {
 }
 
 /// `[run]`
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RunConfig {
     /// Stop after this many frames (0 = until the source ends).
@@ -177,16 +161,6 @@ pub struct RunConfig {
     pub state: String,
     /// Installer snapshot PNG written at the end of the run (empty = none).
     pub snapshot: String,
-}
-
-impl Default for RunConfig {
-    fn default() -> Self {
-        RunConfig {
-            frames: 0,
-            state: String::new(),
-            snapshot: String::new(),
-        }
-    }
 }
 
 /// `[board]`: what a board profile (`board/*.toml`) says about its target.

@@ -68,7 +68,7 @@ impl GtBox {
         let y0 = self.y0.max(0);
         let x1 = self.x1.min(width as i32 - 1);
         let y1 = self.y1.min(height as i32 - 1);
-        (x0 <= x1 && y0 <= y1).then(|| BBox {
+        (x0 <= x1 && y0 <= y1).then_some(BBox {
             x0: x0 as u16,
             y0: y0 as u16,
             x1: x1 as u16,

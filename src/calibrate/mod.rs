@@ -488,9 +488,9 @@ impl Calibrator {
             return None;
         }
         self.emitted = Some(est);
-        let due = self.last_state_write.map_or(true, |f| {
-            (frame - f) as f64 >= self.cfg.state_interval_s * self.fps
-        });
+        let due = self
+            .last_state_write
+            .is_none_or(|f| (frame - f) as f64 >= self.cfg.state_interval_s * self.fps);
         if due && self.state.is_some() {
             self.last_state_write = Some(frame);
             self.save_state();
@@ -690,7 +690,7 @@ impl Calibrator {
             ScaleMode::ReferencePerson(h) => {
                 let mut best: Option<usize> = None;
                 for (i, s) in self.slots.iter().enumerate() {
-                    if s.used && s.len >= 8 && best.map_or(true, |b| s.seq < self.slots[b].seq) {
+                    if s.used && s.len >= 8 && best.is_none_or(|b| s.seq < self.slots[b].seq) {
                         best = Some(i);
                     }
                 }

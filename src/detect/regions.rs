@@ -383,8 +383,8 @@ fn find_cuts(
             }
         }
     }
-    let min_peak = ht * SPLIT_MIN_PEAK_Q8 >> 8;
-    let min_top = (ht * SPLIT_EMPTY_TOP_Q8 >> 8).min(u32::from(u16::MAX)) as u16;
+    let min_peak = (ht * SPLIT_MIN_PEAK_Q8) >> 8;
+    let min_top = ((ht * SPLIT_EMPTY_TOP_Q8) >> 8).min(u32::from(u16::MAX)) as u16;
     let mut m = 0u32;
     for c in 0..wd {
         m = m.max(hist[c] as u32);
