@@ -473,10 +473,11 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         })
         .collect();
     println!(
-        "tracks {} covering {} people, purity {:.1} %",
+        "tracks {} covering {} people, purity {:.1} %, ended on re-identification {}",
         by_track.len(),
         people.len(),
-        100.0 * maj as f64 / tot.max(1) as f64
+        100.0 * maj as f64 / tot.max(1) as f64,
+        run.reid_splits
     );
     if let Some(e) = &run.estimate {
         println!(

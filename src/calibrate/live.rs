@@ -60,6 +60,8 @@ pub struct LiveRun {
     pub true_heights: BTreeMap<u32, f64>,
     /// How full the loop's tables were at the end (and what they lost).
     pub occupancy: crate::run::Occupancy,
+    /// Tracks ended because they re-acquired someone else (whole run).
+    pub reid_splits: u64,
 }
 
 /// Intersection over union of inclusive boxes `[x0, y0, x1, y1]`.
@@ -138,6 +140,7 @@ pub fn run_sim(
     drop(reporter);
     drain.join().map_err(|_| "report drain thread panicked")?;
     let occupancy = p.occupancy();
+    let reid_splits = p.tracker().reid_splits;
     let true_heights = sim
         .cast()
         .iter()
@@ -153,6 +156,7 @@ pub fn run_sim(
         seen_frames,
         true_heights,
         occupancy,
+        reid_splits,
     })
 }
 

@@ -14,7 +14,10 @@
 //!   single person" leaves the track coasting on its particles and
 //!   withholds its samples.
 //! * Births: single-person regions nobody picked. Deaths: no region for
-//!   [`TrackConfig::max_coast_s`]. The table is a fixed-capacity `heapless`
+//!   [`TrackConfig::max_coast_s`], or a region re-acquired after a gap
+//!   ([`TrackConfig::reid_gap_s`]) whose torso colours are someone else's
+//!   ([`TrackConfig::reid_min_similarity`]): the track ends with its own
+//!   samples and the region starts a new track. The table is a fixed-capacity `heapless`
 //!   vector; births beyond it are counted in [`Tracker::overflow`].
 //! * Head/foot samples (eq. 5, from the region) are kept in a bounded ring
 //!   per track, rejected when the region touches the border or its
@@ -92,6 +95,16 @@ pub struct TrackConfig {
     /// the rows of eq. 5, the columns of the axis. `false`: eq. 5 as the
     /// paper has it (top-most pixel, mean of the bottom-most ten).
     pub axis_points: bool,
+    /// A track that snaps to a region again after this long without one
+    /// (coasting alone or through a merge), seconds, first checks that the
+    /// region is the same person ([`TrackConfig::reid_min_similarity`]).
+    pub reid_gap_s: f64,
+    /// Smallest Bhattacharyya coefficient between the torso colours of the
+    /// region and the track's torso model for that re-acquisition; below
+    /// it, someone else walked into the coasting track's box: the track
+    /// ends (its height is reported) and the region starts a new one.
+    /// 0 disables the check.
+    pub reid_min_similarity: f64,
     /// Random seed of the particle filters.
     pub seed: u64,
 }
@@ -111,6 +124,8 @@ impl Default for TrackConfig {
             keep_score: -0.5,
             pinned_head_ratio: 0.15,
             axis_points: true,
+            reid_gap_s: 0.4,
+            reid_min_similarity: 0.7,
             seed: 3,
         }
     }
@@ -134,6 +149,12 @@ impl TrackConfig {
         )?;
         check_range("track.pinned_head_ratio", self.pinned_head_ratio, 0.0..=1.0)?;
         check_range("track.keep_score", self.keep_score, -10.0..=10.0)?;
+        check_range("track.reid_gap_s", self.reid_gap_s, 0.0..=60.0)?;
+        check_range(
+            "track.reid_min_similarity",
+            self.reid_min_similarity,
+            0.0..=1.0,
+        )?;
         if self.hue_bins * self.sat_bins + self.value_bins > MAX_BINS {
             return Err(ConfigError::new(
                 "track.hue_bins",
@@ -167,6 +188,10 @@ pub struct Track {
     size: [f32; 2],
     particles: heapless::Vec<Particle, MAX_PARTICLES>,
     hist: Hist,
+    /// Colour model of the torso (the box's central half by width, rows
+    /// 30–70 %): mostly the person's clothes, little background, so it
+    /// tells two people apart where the whole box's model does not.
+    torso: Hist,
     /// Accepted head/foot samples, newest last.
     pub samples: HistoryBuffer<HeadFoot, RING>,
     /// Sample accepted this frame for calibration, if any (a sample from a
@@ -217,6 +242,7 @@ impl Track {
             size: [0.0; 2],
             particles: heapless::Vec::new(),
             hist: [0.0; MAX_BINS],
+            torso: [0.0; MAX_BINS],
             samples: HistoryBuffer::new(),
             fresh: None,
             sampled: false,
@@ -260,6 +286,9 @@ pub struct Tracker {
     scratch: Hist,
     /// Births refused because the table was full (whole run).
     pub overflow: u64,
+    /// Tracks ended because the region they re-acquired after a gap was
+    /// someone else ([`TrackConfig::reid_min_similarity`]; whole run).
+    pub reid_splits: u64,
 }
 
 impl Tracker {
@@ -276,6 +305,7 @@ impl Tracker {
             rng: Rng::new(cfg.seed),
             scratch: [0.0; MAX_BINS],
             overflow: 0,
+            reid_splits: 0,
         }
     }
 
@@ -379,6 +409,7 @@ impl Tracker {
         }
         // 2. Snap, coast or end.
         let coast = (self.cfg.max_coast_s * fps.max(1.0)).ceil() as u64;
+        let reid_gap = (self.cfg.reid_gap_s * fps.max(1.0)).ceil() as u64;
         for (i, (t, pick)) in self.tracks.iter_mut().zip(self.picks.iter()).enumerate() {
             t.age = t.age.saturating_add(1);
             match *pick {
@@ -391,6 +422,24 @@ impl Tracker {
                         .is_some_and(|v| f64::from(v.score) >= self.cfg.keep_score)
                         && t.snaps >= 3
                         && same_size(t.snapped, &r.bbox);
+                    if (single(j) || keep)
+                        && t.snaps > 0
+                        && frame_no.saturating_sub(t.prev_snap.1) >= reid_gap
+                        && self.cfg.reid_min_similarity > 0.0
+                    {
+                        torso_histogram(&self.table, frame, &r.bbox, &mut self.scratch);
+                        let bc = bhattacharyya(&self.scratch, &t.torso);
+                        if f64::from(bc) < self.cfg.reid_min_similarity {
+                            // Someone else: end here, and let the region
+                            // give birth below if no other track claims it.
+                            t.ended = true;
+                            t.merged = true;
+                            self.claims[j] = self.claims[j].saturating_sub(1);
+                            self.reid_splits += 1;
+                            t.bbox = box_of(t.centre, t.size);
+                            continue;
+                        }
+                    }
                     if single(j) || keep {
                         t.merged = false;
                         snap(
@@ -585,6 +634,13 @@ fn pf_step(
     }
 }
 
+/// Colour histogram of the torso of a person whose box is `b`: the central
+/// half by width, rows 30–70 % of the height.
+fn torso_histogram(table: &ColourTable, frame: &Frame, b: &BBox, out: &mut Hist) {
+    let (c, s) = centre_of(b);
+    table.histogram(frame, c[0], c[1] - 0.1 * s[1], 0.5 * s[0], 0.4 * s[1], out);
+}
+
 /// Snap to region `r`: box, particles re-centred, colour model blended,
 /// and a head/foot sample unless rejected.
 fn snap(
@@ -623,6 +679,13 @@ fn snap(
     t.snaps = t.snaps.saturating_add(1);
     table.histogram(frame, c[0], c[1], s[0], s[1], h);
     for (m, x) in t.hist.iter_mut().zip(h.iter()) {
+        *m = 0.9 * *m + 0.1 * x;
+    }
+    torso_histogram(table, frame, &r.bbox, h);
+    if t.snaps == 1 {
+        t.torso = *h;
+    }
+    for (m, x) in t.torso.iter_mut().zip(h.iter()) {
         *m = 0.9 * *m + 0.1 * x;
     }
     let (hy, fy) = (f64::from(r.head[1]), f64::from(r.foot[1]));

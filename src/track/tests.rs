@@ -377,3 +377,66 @@ fn a_region_top_that_stays_while_the_feet_walk_is_refused() {
         "pinned top accepted: {pinned:?}"
     );
 }
+
+/// A red walker vanishes for a second (behind something the detector
+/// cannot see through) and someone comes out where its track coasts:
+/// `who` in the colours of the walker or another person's.
+fn reappear(cfg: &TrackConfig, who: (u8, u8, u8)) -> Tracker {
+    let (mut t, mut f, mut set) = setup(cfg);
+    for k in 0..40i32 {
+        let p = Person {
+            x0: 40 + 3 * k,
+            y0: 80,
+            w: 20,
+            h: 60,
+            yuv: if k < 20 { RED } else { who },
+        };
+        let hidden = (20..30).contains(&k);
+        paint(
+            &mut f,
+            if hidden {
+                &[]
+            } else {
+                std::slice::from_ref(&p)
+            },
+        );
+        set.clear();
+        if !hidden {
+            region(&mut set, &[p]);
+        }
+        t.step(k as u64, 10.0, &f, &set, &single(set.regions().len(), true));
+    }
+    t
+}
+
+#[test]
+fn a_coasting_track_that_reacquires_someone_else_ends_and_a_new_one_starts() {
+    let cfg = TrackConfig::default();
+    // The same person comes back: one track throughout.
+    let t = reappear(&cfg, RED);
+    assert_eq!(t.reid_splits, 0);
+    assert_eq!(t.tracks().len(), 1);
+    assert_eq!(t.tracks()[0].id, 1);
+    assert!(t.tracks()[0].samples.len() >= 28);
+    // Someone else: the red track ended (its samples are its own) and the
+    // blue walker has a track of its own.
+    let t = reappear(&cfg, BLUE);
+    assert_eq!(t.reid_splits, 1);
+    let ids: Vec<u32> = t
+        .tracks()
+        .iter()
+        .filter(|t| !t.ended)
+        .map(|t| t.id)
+        .collect();
+    assert_eq!(ids, [2]);
+    assert!(t.tracks().iter().find(|t| t.id == 2).unwrap().samples.len() >= 9);
+    // Without the check the red track takes the blue walker over.
+    let off = TrackConfig {
+        reid_min_similarity: 0.0,
+        ..Default::default()
+    };
+    let t = reappear(&off, BLUE);
+    assert_eq!(t.reid_splits, 0);
+    assert_eq!(t.tracks().len(), 1);
+    assert_eq!(t.tracks()[0].id, 1);
+}
