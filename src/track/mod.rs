@@ -17,8 +17,9 @@
 //!   [`TrackConfig::max_coast_s`], or a region re-acquired after a gap
 //!   ([`TrackConfig::reid_gap_s`]) whose torso colours are someone else's
 //!   ([`TrackConfig::reid_min_similarity`]): the track ends with its own
-//!   samples and the region starts a new track. The table is a fixed-capacity `heapless`
-//!   vector; births beyond it are counted in [`Tracker::overflow`].
+//!   samples and the region starts a new track. The table is a
+//!   fixed-capacity `heapless` vector; births beyond it are counted in
+//!   [`Tracker::overflow`].
 //! * Head/foot samples (eq. 5, from the region) are kept in a bounded ring
 //!   per track, rejected when the region touches the border or its
 //!   head–foot extent drops or jumps suddenly (an occluder cut it, or it
