@@ -248,7 +248,7 @@ exec_start=\$(sed -n 's/^ExecStart=//p' /etc/systemd/system/stature.service)
 say "ExecStart: \$exec_start"
 # (busybox su: switches uid, gid and supplementary groups like User=/SupplementaryGroups=)
 # Peak RSS of the 1280x720 run as a real aarch64 kernel counts it (VmHWM,
-# read until the process ends; busybox's `time -v` over-reports it 4x).
+# read until the process ends; busybox's 'time -v' over-reports it 4x).
 su -s /bin/sh -c "\$exec_start --frames 60" stature 2>>/dev/vport0p2 &
 supid=\$!
 hwm=""
