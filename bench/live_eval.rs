@@ -520,6 +520,10 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         hs.non_person,
         if cfg.calibrate.camera_height_m > 0.0 { "camera height" } else { "prior" }
     );
+    println!(
+        "  recall of people seen >= 3 s alone (no other person's box touching theirs): {}/{}",
+        hs.measured_alone, hs.eligible_alone
+    );
     if std::env::var("MISSES").is_ok() {
         recall_misses(&run);
     }

@@ -7,8 +7,9 @@
 Per file: |f| error median, mean and p90, runs within 3 % and 10 %; |tilt|
 and |roll| median and p90 (degrees) and runs within 1 deg; prior-mode camera
 height |error| median and mean; the median over runs of each run's height
-|error| median and scale-free median; recall summed over runs; runs with no
-height; dog or car heights. A run whose pipeline gave no estimate counts as
+|error| median and scale-free median; recall summed over runs (and over the
+people seen alone, when the output has it); runs with no height; dog or car
+heights. A run whose pipeline gave no estimate counts as
 missing in f, tilt and roll (and is listed).
 """
 import re
@@ -22,6 +23,7 @@ FIN = re.compile(
     r"mean signed ([-+\d.NaN]+) m; scale-free median ([\d.NaN]+) p90 ([\d.NaN]+); "
     r"recall \(seen >= 3 s\) (\d+)/(\d+); dog/car heights (\d+)"
 )
+ALONE = re.compile(r"recall of people seen >= 3 s alone .*: (\d+)/(\d+)")
 
 
 def pct(v, q):
@@ -49,6 +51,9 @@ def summarise(path):
             cur["sf_med"] = float(m[6])
             cur["measured"], cur["eligible"] = int(m[8]), int(m[9])
             cur["nonperson"] = int(m[10])
+        m = ALONE.search(line)
+        if m:
+            cur["measured_alone"], cur["eligible_alone"] = int(m[1]), int(m[2])
     est = [r for r in runs if "est" in r]
     fe = [100.0 * (r["est"][0] / r["f"] - 1.0) for r in est]
     te = [abs(r["est"][1] - r["tilt"]) for r in est]
@@ -76,6 +81,11 @@ def summarise(path):
         f"runs without heights {len(runs) - len(withh)} {[r['name'] for r in runs if r not in withh]}, "
         f"dog/car heights {sum(r.get('nonperson', 0) for r in runs)}"
     )
+    if any("eligible_alone" in r for r in runs):
+        print(
+            f"  recall of people seen alone {sum(r.get('measured_alone', 0) for r in runs)}/"
+            f"{sum(r.get('eligible_alone', 0) for r in runs)}"
+        )
 
 
 if __name__ == "__main__":

@@ -56,6 +56,9 @@ pub struct LiveRun {
     pub final_heights: Vec<Height>,
     /// Frames each person was seen at least 90 % unoccluded, inside the image.
     pub seen_frames: BTreeMap<u32, u64>,
+    /// Of those, frames in which no other visible person's box touched
+    /// theirs (apart: a background model can cut them out on their own).
+    pub alone_frames: BTreeMap<u32, u64>,
     /// True standing height of every person of the cast.
     pub true_heights: BTreeMap<u32, f64>,
     /// How full the loop's tables were at the end (and what they lost).
@@ -89,6 +92,7 @@ pub fn run_sim(
     let drain = std::thread::spawn(move || rx.iter().count());
     let mut observations = Vec::new();
     let mut seen_frames: BTreeMap<u32, u64> = BTreeMap::new();
+    let mut alone_frames: BTreeMap<u32, u64> = BTreeMap::new();
     for k in 0..sim.frames() {
         sim.render(k, &mut p.frame);
         p.process(&mut reporter);
@@ -102,6 +106,15 @@ pub fn run_sim(
                 && b[3] < h - 3.0
             {
                 *seen_frames.entry(o.id).or_default() += 1;
+                let alone = sim.truth().iter().all(|q| {
+                    q.id == o.id
+                        || q.kind != Kind::Person
+                        || q.visible_px < 50
+                        || iou(b, q.bbox.map(f64::from)) <= 0.0
+                });
+                if alone {
+                    *alone_frames.entry(o.id).or_default() += 1;
+                }
             }
         }
         for t in p.tracker().tracks() {
@@ -154,6 +167,7 @@ pub fn run_sim(
         estimate: p.estimate().copied(),
         final_heights: std::mem::take(&mut p.final_heights),
         seen_frames,
+        alone_frames,
         true_heights,
         occupancy,
         reid_splits,
@@ -196,6 +210,11 @@ pub struct HeightScore {
     pub eligible: usize,
     /// Of them, people with a final height.
     pub measured: usize,
+    /// People seen like that for at least 3 s with no other person's box
+    /// touching theirs ([`LiveRun::alone_frames`]).
+    pub eligible_alone: usize,
+    /// Of them, people with a final height.
+    pub measured_alone: usize,
     /// Final heights whose track was mostly a dog or a car.
     pub non_person: usize,
 }
@@ -278,6 +297,12 @@ impl LiveRun {
             .filter(|(_, &f)| f as f64 >= min_frames)
             .map(|(&id, _)| id)
             .collect();
+        let alone: Vec<u32> = self
+            .alone_frames
+            .iter()
+            .filter(|(_, &f)| f as f64 >= min_frames)
+            .map(|(&id, _)| id)
+            .collect();
         HeightScore {
             records: pairs.len(),
             people: people.len(),
@@ -288,6 +313,8 @@ impl LiveRun {
             scale_free_p90: quantile(&sf, 0.9),
             measured: eligible.iter().filter(|id| people.contains(id)).count(),
             eligible: eligible.len(),
+            measured_alone: alone.iter().filter(|id| people.contains(id)).count(),
+            eligible_alone: alone.len(),
             non_person,
         }
     }
