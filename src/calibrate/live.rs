@@ -291,18 +291,16 @@ impl LiveRun {
         sf.sort_by(f64::total_cmp);
         let people: BTreeSet<u32> = pairs.iter().map(|p| p.2).collect();
         let min_frames = 3.0 * f64::from(self.scene.fps);
-        let eligible: Vec<u32> = self
-            .seen_frames
-            .iter()
-            .filter(|(_, &f)| f as f64 >= min_frames)
-            .map(|(&id, _)| id)
-            .collect();
-        let alone: Vec<u32> = self
-            .alone_frames
-            .iter()
-            .filter(|(_, &f)| f as f64 >= min_frames)
-            .map(|(&id, _)| id)
-            .collect();
+        // (eligible, measured): people counted for at least 3 s.
+        let recall = |frames: &BTreeMap<u32, u64>| {
+            let eligible = frames.values().filter(|&&f| f as f64 >= min_frames);
+            let measured = frames
+                .iter()
+                .filter(|(id, &f)| f as f64 >= min_frames && people.contains(id));
+            (eligible.count(), measured.count())
+        };
+        let (eligible, measured) = recall(&self.seen_frames);
+        let (eligible_alone, measured_alone) = recall(&self.alone_frames);
         HeightScore {
             records: pairs.len(),
             people: people.len(),
@@ -311,10 +309,10 @@ impl LiveRun {
             signed_mean: pairs.iter().map(|p| p.0 - p.1).sum::<f64>() / n,
             scale_free_median: quantile(&sf, 0.5),
             scale_free_p90: quantile(&sf, 0.9),
-            measured: eligible.iter().filter(|id| people.contains(id)).count(),
-            eligible: eligible.len(),
-            measured_alone: alone.iter().filter(|id| people.contains(id)).count(),
-            eligible_alone: alone.len(),
+            measured,
+            eligible,
+            measured_alone,
+            eligible_alone,
             non_person,
         }
     }
