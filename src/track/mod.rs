@@ -423,25 +423,23 @@ impl Tracker {
                         .is_some_and(|v| f64::from(v.score) >= self.cfg.keep_score)
                         && t.snaps >= 3
                         && same_size(t.snapped, &r.bbox);
-                    if (single(j) || keep)
+                    let someone_else = (single(j) || keep)
                         && t.snaps > 0
                         && frame_no.saturating_sub(t.prev_snap.1) >= reid_gap
                         && self.cfg.reid_min_similarity > 0.0
-                    {
-                        torso_histogram(&self.table, frame, &r.bbox, &mut self.scratch);
-                        let bc = bhattacharyya(&self.scratch, &t.torso);
-                        if f64::from(bc) < self.cfg.reid_min_similarity {
-                            // Someone else: end here, and let the region
-                            // give birth below if no other track claims it.
-                            t.ended = true;
-                            t.merged = true;
-                            self.claims[j] = self.claims[j].saturating_sub(1);
-                            self.reid_splits += 1;
-                            t.bbox = box_of(t.centre, t.size);
-                            continue;
-                        }
-                    }
-                    if single(j) || keep {
+                        && {
+                            torso_histogram(&self.table, frame, &r.bbox, &mut self.scratch);
+                            let bc = bhattacharyya(&self.scratch, &t.torso);
+                            f64::from(bc) < self.cfg.reid_min_similarity
+                        };
+                    if someone_else {
+                        // End here, and let the region give birth below if
+                        // no other track claims it.
+                        t.ended = true;
+                        t.merged = true;
+                        self.claims[j] = self.claims[j].saturating_sub(1);
+                        self.reid_splits += 1;
+                    } else if single(j) || keep {
                         t.merged = false;
                         snap(
                             t,
@@ -642,6 +640,13 @@ fn torso_histogram(table: &ColourTable, frame: &Frame, b: &BBox, out: &mut Hist)
     table.histogram(frame, c[0], c[1] - 0.1 * s[1], 0.5 * s[0], 0.4 * s[1], out);
 }
 
+/// Moves a colour model a tenth of the way toward this frame's histogram.
+fn blend(model: &mut Hist, h: &Hist) {
+    for (m, x) in model.iter_mut().zip(h.iter()) {
+        *m = 0.9 * *m + 0.1 * x;
+    }
+}
+
 /// Snap to region `r`: box, particles re-centred, colour model blended,
 /// and a head/foot sample unless rejected.
 fn snap(
@@ -679,16 +684,12 @@ fn snap(
     t.snapped = s;
     t.snaps = t.snaps.saturating_add(1);
     table.histogram(frame, c[0], c[1], s[0], s[1], h);
-    for (m, x) in t.hist.iter_mut().zip(h.iter()) {
-        *m = 0.9 * *m + 0.1 * x;
-    }
+    blend(&mut t.hist, h);
     torso_histogram(table, frame, &r.bbox, h);
     if t.snaps == 1 {
         t.torso = *h;
     }
-    for (m, x) in t.torso.iter_mut().zip(h.iter()) {
-        *m = 0.9 * *m + 0.1 * x;
-    }
+    blend(&mut t.torso, h);
     let (hy, fy) = (f64::from(r.head[1]), f64::from(r.foot[1]));
     let hf = match cfg.axis_points.then(|| axis::body_axis(runs)).flatten() {
         Some(a) => HeadFoot {
