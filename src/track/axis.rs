@@ -176,7 +176,8 @@ const MAX_BIAS: f64 = 0.6;
 /// too few such rows.
 pub fn width_profile_bias(runs: &[Run]) -> Option<f64> {
     // (row, B) of the two rows before the current one.
-    let (mut before, mut last): (Option<(f64, f64)>, Option<(f64, f64)>) = (None, None);
+    let mut before: Option<(f64, f64)> = None;
+    let mut last = before;
     let (mut n, mut sy, mut sg, mut syy, mut syg) = (0.0, 0.0, 0.0, 0.0, 0.0);
     let mut i = 0;
     while i < runs.len() {
