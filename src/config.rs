@@ -39,6 +39,13 @@ impl ConfigError {
 
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // A syntax error is the file's, not a key's (see `Config::load`).
+        if let Some(file) = self.key.strip_prefix("(file) ") {
+            return match self.value.as_str() {
+                "" => write!(f, "config file `{file}`: {}", self.reason),
+                v => write!(f, "config file `{file}`: `{v}`: {}", self.reason),
+            };
+        }
         let what = if self.key.starts_with('-') {
             "option"
         } else {
@@ -218,7 +225,7 @@ impl Config {
         })?;
         Self::from_toml(&text).map_err(|mut e| {
             if e.key == "(file)" {
-                e.key = path.display().to_string();
+                e.key = format!("(file) {}", path.display());
             }
             e
         })

@@ -112,28 +112,42 @@ struct RunArgs {
 
 /// How heights get their metric scale (see `calibrate::ScaleMode`).
 #[derive(Args, Default)]
+#[group(multiple = false)]
 struct ScaleArgs {
     /// Known camera mounting height in metres (best absolute heights).
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true, value_parser = metres)]
     camera_height: Option<f64>,
     /// Height of the first person tracked (walk through alone), metres.
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true, value_parser = metres)]
     reference_height: Option<f64>,
     /// Mean height of the people who pass (default 1.70), metres.
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true, value_parser = metres)]
     prior_height: Option<f64>,
 }
 
+/// A length in metres given on the command line: a finite number above 0
+/// (the config ranges then apply).
+fn metres(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(_) => Err("expected a length in metres above 0".into()),
+        Err(e) => Err(format!("{e}")),
+    }
+}
+
 impl ScaleArgs {
+    /// The scale mode given on the command line replaces the file's: the
+    /// other two ways of setting the scale are cleared.
     fn apply(&self, cfg: &mut Config) {
+        let c = &mut cfg.calibrate;
         if let Some(h) = self.camera_height {
-            cfg.calibrate.camera_height_m = h;
+            (c.camera_height_m, c.reference_height_m) = (h, 0.0);
         }
         if let Some(h) = self.reference_height {
-            cfg.calibrate.reference_height_m = h;
+            (c.camera_height_m, c.reference_height_m) = (0.0, h);
         }
         if let Some(h) = self.prior_height {
-            cfg.calibrate.prior_height_m = h;
+            (c.camera_height_m, c.reference_height_m, c.prior_height_m) = (0.0, 0.0, h);
         }
     }
 }
@@ -296,10 +310,16 @@ fn main() {
 fn config_cmd(a: ConfigArgs) -> i32 {
     if let Some(path) = a.check {
         return match Config::load(&path) {
-            Ok(_) => {
-                println!("{}: ok", path.display());
-                exit::OK
-            }
+            Ok(cfg) => match source::check(&cfg.source.uri) {
+                Ok(()) => {
+                    println!("{}: ok", path.display());
+                    exit::OK
+                }
+                Err(e) => {
+                    eprintln!("error: {}: source.uri: {e}", path.display());
+                    exit::BAD_INPUT
+                }
+            },
             Err(e) => {
                 eprintln!("error: {e}");
                 exit::BAD_INPUT
@@ -382,7 +402,14 @@ fn run_source(
     until_confident: bool,
 ) -> i32 {
     let info = src.info().clone();
-    // The snapshot path is checked before anything else starts.
+    // The state and snapshot paths are checked before anything else starts.
+    if !cfg.run.state.is_empty() {
+        let path = std::path::Path::new(&cfg.run.state);
+        if let Err(e) = stature::calibrate::state::StateFile::open(path, 0) {
+            log::error!("calibration state {}: {e}", path.display());
+            return exit::UNAVAILABLE;
+        }
+    }
     let mut snapshot = None;
     if !cfg.run.snapshot.is_empty() {
         let path = std::path::Path::new(&cfg.run.snapshot);
@@ -530,6 +557,22 @@ fn demo(a: DemoArgs) -> i32 {
 }
 
 /// Wraps the demo's source to show progress on stderr.
+/// Shows `done` of `total` frames (called every `step` frames and at the
+/// end): one line rewritten in place on a terminal; in a log (stderr not
+/// a terminal) a line at every tenth of the way, so the log stays readable.
+fn progress(what: &str, done: u64, total: u64, step: u64) {
+    use std::io::IsTerminal;
+    let pct = done * 100 / total.max(1);
+    if std::io::stderr().is_terminal() {
+        eprint!("\r{what}: frame {done}/{total} ({pct}%)");
+        if done >= total {
+            eprintln!();
+        }
+    } else if done >= total || pct / 10 != (done.saturating_sub(step) * 100 / total.max(1)) / 10 {
+        eprintln!("{what}: frame {done}/{total} ({pct}%)");
+    }
+}
+
 struct Progress {
     inner: stature::source::sim::SimSource,
     total: u64,
@@ -548,15 +591,7 @@ impl source::FrameSource for Progress {
         if let Ok(source::Next::Frame) = r {
             self.done += 1;
             if self.done % 25 == 0 || self.done == self.total {
-                eprint!(
-                    "\rstature demo: frame {}/{} ({}%)",
-                    self.done,
-                    self.total,
-                    self.done * 100 / self.total.max(1)
-                );
-                if self.done == self.total {
-                    eprintln!();
-                }
+                progress("stature demo", self.done, self.total, 25);
             }
         }
         r
@@ -649,15 +684,12 @@ fn sim_cmd(a: SimArgs) -> i32 {
         truth.as_deref_mut().map(|w| w as &mut dyn Write),
         |k| {
             if (k + 1) % 50 == 0 || k + 1 == total {
-                eprint!("\rstature sim: frame {}/{}", k + 1, total);
+                progress("stature sim", k + 1, total, 50);
             }
         },
     )
     .and_then(|_| y4m.as_mut().map_or(Ok(()), |w| w.flush()))
     .and_then(|_| truth.as_mut().map_or(Ok(()), |w| w.flush()));
-    if total > 0 {
-        eprintln!();
-    }
     match result {
         Ok(()) => exit::OK,
         Err(e) => fail(&"writing failed", e),

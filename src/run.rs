@@ -165,7 +165,13 @@ impl Pipeline {
         if !cfg.run.state.is_empty() {
             let k = cfg.calibrate.tracks * cfg.calibrate.anchors_per_track;
             // About 110 bytes of JSON per anchor.
-            let file = StateFile::new(std::path::Path::new(&cfg.run.state), 4096 + 128 * k);
+            let file = match StateFile::open(std::path::Path::new(&cfg.run.state), 4096 + 128 * k) {
+                Ok(f) => f,
+                Err(e) => {
+                    log::warn!("calibration state {}: {e}; not kept", cfg.run.state);
+                    return c;
+                }
+            };
             match file.load() {
                 Ok(Some(saved)) => {
                     let n = c.resume(&saved);

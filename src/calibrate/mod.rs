@@ -117,16 +117,36 @@ impl CalibrateConfig {
     /// Checks every value against its accepted range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         check_range("calibrate.prior_height_m", self.prior_height_m, 0.5..=2.5)?;
-        check_range(
-            "calibrate.camera_height_m",
-            self.camera_height_m,
-            0.0..=100.0,
-        )?;
-        check_range(
-            "calibrate.reference_height_m",
-            self.reference_height_m,
-            0.0..=2.5,
-        )?;
+        // 0 = unset; a set length must be a plausible one.
+        for (key, v, lo, hi) in [
+            (
+                "calibrate.camera_height_m",
+                self.camera_height_m,
+                0.5,
+                100.0,
+            ),
+            (
+                "calibrate.reference_height_m",
+                self.reference_height_m,
+                0.5,
+                2.5,
+            ),
+        ] {
+            if v != 0.0 && !(lo..=hi).contains(&v) {
+                return Err(ConfigError::new(
+                    key,
+                    v,
+                    format_args!("0 (unset) or a value in {lo}..={hi}"),
+                ));
+            }
+        }
+        if self.camera_height_m > 0.0 && self.reference_height_m > 0.0 {
+            return Err(ConfigError::invalid(
+                "calibrate.reference_height_m",
+                self.reference_height_m,
+                "set either it or calibrate.camera_height_m, not both (each fixes the scale)",
+            ));
+        }
         check_range("calibrate.foot_offset", self.foot_offset, 0.0..=0.3)?;
         check_range("calibrate.head_radius", self.head_radius, 0.0..=0.15)?;
         check_range(
@@ -523,7 +543,7 @@ impl Calibrator {
             per_track: k,
         };
         if let Err(e) = st.write(&view) {
-            log::warn!("calibration state: {e}");
+            log::warn!("calibration state {}: {e}", st.path().display());
         }
         self.state = Some(st);
     }

@@ -112,19 +112,35 @@ pub fn parse_state(bytes: &[u8]) -> Result<Saved, StateError> {
 
 impl StateFile {
     /// A state file at `path`; `capacity` bytes of serialisation buffer.
+    /// Nothing is checked: [`StateFile::open`] is what a run uses.
     pub fn new(path: &Path, capacity: usize) -> Self {
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
         StateFile {
             path: path.to_path_buf(),
-            tmp: PathBuf::from(tmp),
+            tmp: crate::replace::tmp_beside(path),
             dir,
             buf: Vec::with_capacity(capacity),
         }
+    }
+
+    /// A state file at `path`, checked now so that a run does not find out
+    /// at its first write: a symbolic link is followed (the file it points
+    /// to is the one replaced), anything but a regular file is refused, and
+    /// `PATH.tmp` is created and removed in the target's directory.
+    pub fn open(path: &Path, capacity: usize) -> Result<Self, StateError> {
+        let target = crate::replace::target(path).map_err(StateError::Io)?;
+        let file = StateFile::new(&target, capacity);
+        File::create(&file.tmp).map_err(|e| {
+            StateError::Io(std::io::Error::new(
+                e.kind(),
+                format!("cannot create {}: {e}", file.tmp.display()),
+            ))
+        })?;
+        let _ = std::fs::remove_file(&file.tmp);
+        Ok(file)
     }
 
     /// The file's path.

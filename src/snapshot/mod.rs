@@ -565,24 +565,23 @@ pub struct SnapshotFile {
 }
 
 impl SnapshotFile {
-    /// Checks that `path` can be written by creating `PATH.tmp` now.
+    /// Checks that `path` can be written by creating `PATH.tmp` now (beside
+    /// the file a symbolic link at `path` points to).
     pub fn create(path: &Path) -> Result<Self, SnapshotError> {
         let err = |error| SnapshotError {
             path: path.to_path_buf(),
             error,
         };
-        if path.is_dir() {
-            return Err(err(io::Error::other("it is a directory")));
-        }
-        if path.file_name().is_none() {
+        // A link is followed (its file is replaced); a directory, device
+        // or FIFO is refused.
+        let target = crate::replace::target(path).map_err(err)?;
+        if target.file_name().is_none() {
             return Err(err(io::Error::other("not a file name")));
         }
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        let tmp = PathBuf::from(tmp);
+        let tmp = crate::replace::tmp_beside(&target);
         let file = File::create(&tmp).map_err(err)?;
         Ok(SnapshotFile {
-            path: path.to_path_buf(),
+            path: target,
             tmp,
             file: Some(file),
         })

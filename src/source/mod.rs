@@ -158,8 +158,33 @@ pub fn query_pairs(query: &str) -> impl Iterator<Item = (&str, &str)> {
         .map(|p| p.split_once('=').unwrap_or((p, "")))
 }
 
-/// Opens the source named by `uri`.
+/// Checks a source URI without opening anything (what `stature config
+/// --check` can say before a run): the scheme, a y4m path, the v4l2 and
+/// sim options and the scene name. Whether the file or device is there is
+/// only known when [`open`] tries.
+pub fn check(uri: &str) -> Result<(), SourceError> {
+    let (scheme, path, query) =
+        split_uri(uri).ok_or_else(|| SourceError::Spec(format!("`{uri}`: expected SCHEME:...")))?;
+    match scheme {
+        "y4m" if path.is_empty() => {
+            Err(SourceError::Spec(format!("`{uri}`: y4m needs a file path")))
+        }
+        "y4m" if query.is_empty() => Ok(()),
+        "y4m" => Err(SourceError::Spec(format!("`{uri}`: y4m takes no options"))),
+        "v4l2" => v4l2::V4l2Spec::parse(path, query).map(|_| ()),
+        "sim" => {
+            sim::scene_named(path)?;
+            sim::SimOptions::parse(query).map(|_| ())
+        }
+        _ => Err(SourceError::Spec(format!(
+            "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
+        ))),
+    }
+}
+
+/// Opens a source URI (`y4m:PATH`, `v4l2:/dev/videoN?...`, `sim:SCENE?...`).
 pub fn open(uri: &str) -> Result<Box<dyn FrameSource + Send>, SourceError> {
+    check(uri)?;
     let (scheme, path, query) =
         split_uri(uri).ok_or_else(|| SourceError::Spec(format!("`{uri}`: expected SCHEME:...")))?;
     match scheme {

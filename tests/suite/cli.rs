@@ -156,7 +156,55 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
     std::fs::write(&unknown, "[detect]\nhistroy = 5\n").unwrap();
     let garbage = dir.join("garbage.y4m");
     std::fs::write(&garbage, b"GIF89a not a y4m\n").unwrap();
+    let both_scales = dir.join("both.toml");
+    std::fs::write(
+        &both_scales,
+        "[calibrate]\ncamera_height_m = 3.0\nreference_height_m = 1.8\n",
+    )
+    .unwrap();
+    let syntax = dir.join("syntax.toml");
+    std::fs::write(&syntax, "[source\n").unwrap();
     let cases: Vec<(Vec<String>, i32, &str)> = vec![
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--state".into(),
+                "/dev/null".into(),
+            ],
+            3,
+            "calibration state /dev/null: not a regular file",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--state".into(),
+                "/nonexistent-dir/x.state".into(),
+            ],
+            3,
+            "cannot create /nonexistent-dir/x.state.tmp",
+        ),
+        (
+            vec!["--config".into(), both_scales.display().to_string()],
+            2,
+            "not both",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--camera-height".into(),
+                "0.01".into(),
+            ],
+            2,
+            "0 (unset) or a value in 0.5..=100",
+        ),
+        (
+            vec!["--config".into(), syntax.display().to_string()],
+            2,
+            "config file `",
+        ),
         (
             vec!["--source".into(), "y4m:/nonexistent/x.y4m".into()],
             3,
@@ -370,6 +418,82 @@ fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
     };
     crate::snapshot::assert_horizon_drawn(&pixel, (w, h), horizon);
     assert!(!dir.join("run-snapshot.png.tmp").exists());
+}
+
+#[test]
+fn scale_options_exclude_each_other_and_replace_the_files_choice() {
+    let dir = common::fresh_dir("cli-scale_options_exclude_each_other");
+    let clip = write_clip(&dir, "s.y4m", 3);
+    let src = format!("y4m:{}", clip.display());
+    // Two ways of setting the scale at once: refused by the parser.
+    let out = run(&[
+        "run",
+        "--source",
+        &src,
+        "--camera-height",
+        "4",
+        "--reference-height",
+        "1.8",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("cannot be used with"), "{err}");
+    for bad in ["-1", "0", "nan"] {
+        let out = run(&["run", "--source", &src, "--camera-height", bad]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {err}");
+        assert!(err.contains("--camera-height"), "{bad}: {err}");
+    }
+    // The file sets a camera height; --reference-height on the command
+    // line replaces it (before, the camera height silently won and the
+    // combination even passed validation).
+    let cfg = dir.join("ch.toml");
+    std::fs::write(&cfg, "[calibrate]\ncamera_height_m = 3.0\n").unwrap();
+    let out = run(&[
+        "run",
+        "--source",
+        &src,
+        "--config",
+        cfg.to_str().unwrap(),
+        "--reference-height",
+        "1.75",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    // `config --check` also checks the source's URI, not only the keys.
+    let uri = dir.join("uri.toml");
+    std::fs::write(&uri, "[source]\nuri = \"sim:plaza?seed=abc\"\n").unwrap();
+    let out = run(&["config", "--check", uri.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("seed=abc"), "{err}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_state_path_that_is_a_link_updates_the_linked_file() {
+    let dir = common::fresh_dir("cli-a_state_path_that_is_a_link_updates_the_linked_file");
+    let clip = write_clip(&dir, "l.y4m", 3);
+    std::fs::create_dir_all(dir.join("persist")).unwrap();
+    let link = dir.join("cam.state");
+    std::os::unix::fs::symlink("persist/cam.state", &link).unwrap();
+    let out = run(&[
+        "run",
+        "--source",
+        &format!("y4m:{}", clip.display()),
+        "--state",
+        link.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let meta = std::fs::symlink_metadata(&link).unwrap();
+    assert!(meta.file_type().is_symlink(), "the link is still a link");
+    let text = std::fs::read_to_string(dir.join("persist/cam.state")).unwrap();
+    assert!(
+        text.contains("\"version\""),
+        "the linked file holds the state: {text}"
+    );
+    assert!(!dir.join("persist/cam.state.tmp").exists());
 }
 
 #[test]

@@ -43,6 +43,17 @@ pub use truth::{CastMember, ObjectTruth, SceneTruth};
 /// clip at open, so its memory grows with the length.
 pub const MAX_FRAMES: u64 = 1_000_000;
 
+/// The built-in scene called `name`, or an error listing them all.
+pub fn scene_named(name: &str) -> Result<&'static SceneSpec, SourceError> {
+    scene::find(name).ok_or_else(|| {
+        let names: Vec<&str> = scene::scenes().iter().map(|s| s.name).collect();
+        SourceError::Spec(format!(
+            "unknown scene `{name}` (expected one of: {})",
+            names.join(", ")
+        ))
+    })
+}
+
 /// How to open a scene (what the `sim:` query string sets).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimOptions {
@@ -127,14 +138,7 @@ pub struct SimSource {
 impl SimSource {
     /// Opens scene `name` with the `sim:` query options (`seed=N&frames=N&...`).
     pub fn open(name: &str, query: &str) -> Result<Self, SourceError> {
-        let spec = scene::find(name).ok_or_else(|| {
-            let names: Vec<&str> = scene::scenes().iter().map(|s| s.name).collect();
-            SourceError::Spec(format!(
-                "unknown scene `{name}` (expected one of: {})",
-                names.join(", ")
-            ))
-        })?;
-        Ok(Self::new(spec, &SimOptions::parse(query)?))
+        Ok(Self::new(scene_named(name)?, &SimOptions::parse(query)?))
     }
 
     /// Opens a `sim:NAME?...` URI.
