@@ -16,7 +16,8 @@ static GLOBAL: stature::alloc_count::CountingAlloc = stature::alloc_count::Count
 #[command(
     name = "stature",
     version,
-    about = "Self-calibrating camera firmware that measures walking people's heights"
+    about = "Self-calibrating camera firmware that measures walking people's heights",
+    after_help = "With no command, runs `demo` (what `cargo run --release` does)."
 )]
 struct Cli {
     #[command(subcommand)]
