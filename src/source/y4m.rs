@@ -67,6 +67,11 @@ impl Header {
     pub fn parse(line: &[u8]) -> Result<Header, String> {
         let text =
             std::str::from_utf8(line).map_err(|_| "header is not text (UTF-8)".to_string())?;
+        // Otherwise the last tag carries the `\r` and is refused under a
+        // name that looks valid (`C420jpeg`).
+        if text.ends_with('\r') {
+            return Err("header line ends with CR LF; Y4M lines end with LF alone".into());
+        }
         let mut parts = text.split(' ').filter(|p| !p.is_empty());
         if parts.next() != Some("YUV4MPEG2") {
             return Err("missing YUV4MPEG2 signature".into());
@@ -79,7 +84,11 @@ impl Header {
             match key {
                 "W" => w = Some(parse_dim(val, "width")?),
                 "H" => h = Some(parse_dim(val, "height")?),
-                "F" => fps = parse_ratio(val).ok_or_else(|| format!("bad frame rate tag `F{val}`"))?,
+                "F" => {
+                    fps = parse_ratio(val)
+                        .filter(|&(n, d)| n > 0 && d > 0)
+                        .ok_or_else(|| format!("bad frame rate tag `F{val}` (expected N:D, both above 0)"))?
+                }
                 "A" => {
                     parse_ratio(val).ok_or_else(|| format!("bad aspect tag `A{val}`"))?;
                 }
@@ -401,6 +410,9 @@ mod tests {
             ("YUV4MPEG2 W4 H0\n", "height"),
             ("YUV4MPEG2 W4 H2 C420p10\n", "420p10"),
             ("YUV4MPEG2 W4 H2 Fx\n", "frame rate"),
+            ("YUV4MPEG2 W4 H2 F0:0\n", "frame rate"),
+            ("YUV4MPEG2 W4 H2 F25:0\n", "frame rate"),
+            ("YUV4MPEG2 W4 H2 C420jpeg\r\n", "CR LF"),
             ("YUV4MPEG2 W4 H2 Q1\n", "unknown header tag"),
             ("YUV4MPEG2 W4 H2", "not terminated"),
             ("", "empty"),
