@@ -42,11 +42,12 @@ enum Command {
 
 #[derive(Args, Default)]
 struct Verbosity {
-    /// More log output on stderr (-v info+debug, -vv trace).
+    /// More log output on stderr (-v adds debug: calibration updates and
+    /// final heights as they happen; -vv adds trace: a line per frame).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
     /// Only errors on stderr.
-    #[arg(short, long, global = true)]
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
     quiet: bool,
 }
 

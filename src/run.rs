@@ -249,6 +249,12 @@ impl Pipeline {
             let h = height_record(at, t.id, &c, &t.last, &t.seen_box, t.ended);
             if t.ended {
                 keep_final(&mut self.final_heights, &h);
+                log::debug!(
+                    "track {}: final height {:.3} m from {} samples",
+                    h.track_id,
+                    h.height_m,
+                    h.samples
+                );
             }
             let rec = Record::Height(h);
             st.run(Stage::Report, || reporter.send(rec));
@@ -303,6 +309,14 @@ impl Pipeline {
             self.tracker
                 .step(frame, self.fps, &self.frame, &self.regions, &self.verdicts)
         });
+        if log::log_enabled!(log::Level::Trace) {
+            log::trace!(
+                "frame {frame}: {} regions, {} of them one person, {} tracks",
+                self.regions.regions().len(),
+                self.verdicts.iter().filter(|v| v.single_human).count(),
+                self.tracker.live()
+            );
+        }
         st.run(Stage::Observe, || {
             for t in self.tracker.tracks() {
                 if let Some(hf) = t.fresh {
@@ -311,6 +325,15 @@ impl Pipeline {
             }
         });
         if let Some(c) = st.run(Stage::Calibrate, || self.calib.update(frame)) {
+            log::debug!(
+                "calibration at frame {frame}: f {:.0} px, tilt {:.2}°, roll {:.2}°, camera {:.2} m, {} inliers, confidence {:.2}",
+                c.f_px,
+                c.tilt_deg,
+                c.roll_deg,
+                c.camera_height_m,
+                c.inliers,
+                c.confidence
+            );
             self.calibration = Some(c.clone());
             let rec = Record::Calibration(c);
             st.run(Stage::Report, || reporter.send(rec));

@@ -564,3 +564,29 @@ fn snapshot_command_stops_once_the_calibration_is_confident() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--out"));
 }
+
+#[test]
+fn verbosity_flags_add_debug_and_trace_lines() {
+    let count = |args: &[&str], what: &str| {
+        let mut full = vec!["run", "--source", "sim:plaza?seed=1", "--frames", "300"];
+        full.extend_from_slice(args);
+        let out = run(&full);
+        assert_eq!(out.status.code(), Some(0));
+        String::from_utf8_lossy(&out.stderr)
+            .lines()
+            .filter(|l| l.contains(what))
+            .count()
+    };
+    assert_eq!(count(&[], "DEBUG]"), 0);
+    assert!(count(&["-v"], "DEBUG] calibration at frame") > 0);
+    assert_eq!(count(&["-v"], "TRACE]"), 0);
+    // One trace line per frame.
+    assert_eq!(count(&["-vv"], "TRACE] frame "), 300);
+    assert_eq!(count(&["-q"], "INFO ]"), 0);
+    let out = run(&["run", "-v", "-q"]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "-v and -q contradict each other"
+    );
+}
