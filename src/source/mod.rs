@@ -158,23 +158,31 @@ pub fn query_pairs(query: &str) -> impl Iterator<Item = (&str, &str)> {
         .map(|p| p.split_once('=').unwrap_or((p, "")))
 }
 
-/// Checks a source URI without opening anything (what `stature config
-/// --check` can say before a run): the scheme, a y4m path, the v4l2 and
-/// sim options and the scene name. Whether the file or device is there is
-/// only known when [`open`] tries.
-pub fn check(uri: &str) -> Result<(), SourceError> {
+/// A source URI split by scheme, its parts checked ([`parse`]).
+enum Spec<'a> {
+    /// `y4m:PATH` (`-` for standard input).
+    Y4m(&'a str),
+    /// `v4l2:DEVICE?QUERY`.
+    V4l2(&'a str, &'a str),
+    /// `sim:SCENE?QUERY`.
+    Sim(&'a str, &'a str),
+}
+
+/// Splits `uri` by scheme and checks what can be checked without opening
+/// anything: the scheme, a y4m path, the v4l2 and sim options, the scene.
+fn parse(uri: &str) -> Result<Spec<'_>, SourceError> {
     let (scheme, path, query) =
         split_uri(uri).ok_or_else(|| SourceError::Spec(format!("`{uri}`: expected SCHEME:...")))?;
     match scheme {
         "y4m" if path.is_empty() => {
             Err(SourceError::Spec(format!("`{uri}`: y4m needs a file path")))
         }
-        "y4m" if query.is_empty() => Ok(()),
+        "y4m" if query.is_empty() => Ok(Spec::Y4m(path)),
         "y4m" => Err(SourceError::Spec(format!("`{uri}`: y4m takes no options"))),
-        "v4l2" => v4l2::V4l2Spec::parse(path, query).map(|_| ()),
+        "v4l2" => v4l2::V4l2Spec::parse(path, query).map(|_| Spec::V4l2(path, query)),
         "sim" => {
             sim::scene_named(path)?;
-            sim::SimOptions::parse(query).map(|_| ())
+            sim::SimOptions::parse(query).map(|_| Spec::Sim(path, query))
         }
         _ => Err(SourceError::Spec(format!(
             "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
@@ -182,18 +190,18 @@ pub fn check(uri: &str) -> Result<(), SourceError> {
     }
 }
 
+/// Checks a source URI without opening anything (what `stature config
+/// --check` can say before a run). Whether the file or device is there is
+/// only known when [`open`] tries.
+pub fn check(uri: &str) -> Result<(), SourceError> {
+    parse(uri).map(|_| ())
+}
+
 /// Opens a source URI (`y4m:PATH`, `v4l2:/dev/videoN?...`, `sim:SCENE?...`).
 pub fn open(uri: &str) -> Result<Box<dyn FrameSource + Send>, SourceError> {
-    check(uri)?;
-    let (scheme, path, query) =
-        split_uri(uri).ok_or_else(|| SourceError::Spec(format!("`{uri}`: expected SCHEME:...")))?;
-    match scheme {
-        "y4m" if query.is_empty() => Ok(Box::new(y4m::Y4mSource::open(path)?)),
-        "y4m" => Err(SourceError::Spec(format!("`{uri}`: y4m takes no options"))),
-        "v4l2" => Ok(Box::new(v4l2::V4l2Source::open(path, query)?)),
-        "sim" => Ok(Box::new(sim::SimSource::open(path, query)?)),
-        _ => Err(SourceError::Spec(format!(
-            "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
-        ))),
-    }
+    Ok(match parse(uri)? {
+        Spec::Y4m(path) => Box::new(y4m::Y4mSource::open(path)?),
+        Spec::V4l2(path, query) => Box::new(v4l2::V4l2Source::open(path, query)?),
+        Spec::Sim(name, query) => Box::new(sim::SimSource::open(name, query)?),
+    })
 }
