@@ -558,7 +558,6 @@ fn demo(a: DemoArgs) -> i32 {
     code
 }
 
-/// Wraps the demo's source to show progress on stderr.
 /// Shows `done` of `total` frames (called every `step` frames and at the
 /// end): one line rewritten in place on a terminal; in a log (stderr not
 /// a terminal) a line at every tenth of the way, so the log stays readable.
@@ -575,6 +574,7 @@ fn progress(what: &str, done: u64, total: u64, step: u64) {
     }
 }
 
+/// Wraps the demo's source to show progress on stderr.
 struct Progress {
     inner: stature::source::sim::SimSource,
     total: u64,
