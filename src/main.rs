@@ -382,13 +382,40 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
     if !cfg.board.name.is_empty() {
         log::info!("board profile {}", cfg.board.name);
     }
-    match source::open(&cfg.source.uri) {
-        Ok(mut s) => run_source(cfg, s.as_mut(), &mut (None, Vec::new()), until_confident),
+    // Installed before the source opens: a pipe may take its time to send
+    // the Y4M header, and a signal meanwhile should end the run cleanly.
+    let stop = stop_on_signals();
+    // A pipe or FIFO may take its time to send its header: say what is awaited.
+    log::info!("opening source {}", cfg.source.uri);
+    match source::open_stoppable(&cfg.source.uri, Some(stop.clone())) {
+        Ok(mut s) => run_source(
+            cfg,
+            s.as_mut(),
+            &stop,
+            &mut (None, Vec::new()),
+            until_confident,
+        ),
+        Err(source::SourceError::Stopped) => {
+            log::info!("stopped by a signal before the source had sent its first frame");
+            exit::OK
+        }
         Err(e) => {
             log::error!("{e}");
             e.exit_code()
         }
     }
+}
+
+/// A flag that SIGINT and SIGTERM set (the loop then stops after the
+/// current frame and sends its final records).
+fn stop_on_signals() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if let Err(e) = signal_hook::flag::register(sig, stop.clone()) {
+            log::warn!("cannot install handler for signal {sig}: {e}");
+        }
+    }
+    stop
 }
 
 /// What the demo compares with the truth: final calibration and heights.
@@ -400,6 +427,7 @@ type Outcome = (
 fn run_source(
     cfg: &Config,
     src: &mut dyn source::FrameSource,
+    stop: &AtomicBool,
     outcome: &mut Outcome,
     until_confident: bool,
 ) -> i32 {
@@ -448,18 +476,12 @@ fn run_source(
         info.size.height,
         info.fps_f64()
     );
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        if let Err(e) = signal_hook::flag::register(sig, stop.clone()) {
-            log::warn!("cannot install handler for signal {sig}: {e}");
-        }
-    }
     let (mut reporter, rx, counters) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
     let io = report::spawn_io(rx, sinks, cfg.report.format, counters.clone());
     let opts = run::LoopOptions {
         max_frames: cfg.run.frames,
         status_interval_s: cfg.report.status_interval_s,
-        stop: &stop,
+        stop,
         allocations: stature::alloc_count::allocations,
     };
     let mut summary = match snapshot.as_mut() {
@@ -523,7 +545,8 @@ fn demo(a: DemoArgs) -> i32 {
         done: 0,
     };
     let mut outcome = (None, Vec::new());
-    let code = run_source(&cfg, &mut progress, &mut outcome, false);
+    let stop = stop_on_signals();
+    let code = run_source(&cfg, &mut progress, &stop, &mut outcome, false);
     let sim = progress.inner;
     let cast = sim.cast();
     // Each final height is matched to the person whose true foot is nearest

@@ -97,6 +97,9 @@ pub enum SourceError {
     },
     /// This build lacks the source (e.g. `v4l2` feature off).
     Unsupported(&'static str),
+    /// A stop was asked for (SIGINT/SIGTERM) while the source was still
+    /// opening, e.g. waiting on a pipe for its Y4M header.
+    Stopped,
 }
 
 impl SourceError {
@@ -104,6 +107,8 @@ impl SourceError {
     pub fn exit_code(&self) -> i32 {
         match self {
             SourceError::Open { .. } | SourceError::Unsupported(_) => crate::exit::UNAVAILABLE,
+            // Asked for; not a failure.
+            SourceError::Stopped => crate::exit::OK,
             _ => crate::exit::BAD_INPUT,
         }
     }
@@ -126,6 +131,7 @@ impl fmt::Display for SourceError {
             }
             SourceError::Io { frame, error } => write!(f, "read error at frame {frame}: {error}"),
             SourceError::Unsupported(s) => write!(f, "{s}"),
+            SourceError::Stopped => write!(f, "stopped before the source had opened"),
         }
     }
 }
@@ -199,8 +205,19 @@ pub fn check(uri: &str) -> Result<(), SourceError> {
 
 /// Opens a source URI (`y4m:PATH`, `v4l2:/dev/videoN?...`, `sim:SCENE?...`).
 pub fn open(uri: &str) -> Result<Box<dyn FrameSource + Send>, SourceError> {
+    open_stoppable(uri, None)
+}
+
+/// [`open`], with the flag a signal handler sets to stop the run: a Y4M
+/// pipe that has gone quiet is then given up instead of waited on (the
+/// header read fails with [`SourceError::Stopped`], a frame read returns
+/// [`Next::Waiting`]). Cameras and the simulation never block for long.
+pub fn open_stoppable(
+    uri: &str,
+    stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+) -> Result<Box<dyn FrameSource + Send>, SourceError> {
     Ok(match parse(uri)? {
-        Spec::Y4m(path) => Box::new(y4m::Y4mSource::open(path)?),
+        Spec::Y4m(path) => Box::new(y4m::Y4mSource::open_stoppable(path, stop)?),
         Spec::V4l2(path, query) => Box::new(v4l2::V4l2Source::open(path, query)?),
         Spec::Sim(name, query) => Box::new(sim::SimSource::open(name, query)?),
     })

@@ -8,6 +8,10 @@
 use super::{convert, FrameSource, Next, SourceError, SourceInfo};
 use crate::frame::{Frame, Size};
 use std::io::{self, BufRead, BufReader, Read};
+use std::os::fd::AsFd;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
 
 /// Longest header or frame-header line accepted, in bytes.
 const MAX_LINE: usize = 4096;
@@ -130,9 +134,46 @@ fn parse_ratio(val: &str) -> Option<(u32, u32)> {
     Some((n.parse().ok()?, d.parse().ok()?))
 }
 
+/// How often a quiet pipe is checked for a stop request.
+const STOP_POLL: Duration = Duration::from_millis(100);
+
+/// A pipe (or terminal, FIFO, socket) read that gives up when `stop` is
+/// set, instead of blocking until the writer sends a byte. A stop signal
+/// interrupts `poll` (it is never restarted), so it is seen at once; the
+/// timeout only covers a flag set from another thread.
+struct StopOnSignal<R> {
+    inner: R,
+    stop: Arc<AtomicBool>,
+}
+
+impl<R: Read + AsFd> Read for StopOnSignal<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        use rustix::event::{poll, PollFd, PollFlags, Timespec};
+        let timeout = Timespec {
+            tv_sec: 0,
+            tv_nsec: STOP_POLL.as_nanos() as _,
+        };
+        loop {
+            if self.stop.load(Ordering::Relaxed) {
+                // Not `Interrupted`: `read_until` and `read_exact` retry that.
+                return Err(io::ErrorKind::TimedOut.into());
+            }
+            let mut fds = [PollFd::new(&self.inner, PollFlags::IN)];
+            match poll(&mut fds, Some(&timeout)) {
+                // Readable, at end (HUP) or in error: `read` says which.
+                Ok(n) if n > 0 => return self.inner.read(buf),
+                Ok(_) | Err(rustix::io::Errno::INTR) => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+    }
+}
+
 /// Reads Y4M frames from a file or standard input.
 pub struct Y4mSource {
     reader: Box<dyn BufRead + Send>,
+    /// Set by a signal handler; a quiet pipe's read then gives up.
+    stop: Option<Arc<AtomicBool>>,
     header: Header,
     info: SourceInfo,
     /// Raw frame payload when it is not already 4:2:0.
@@ -146,20 +187,79 @@ pub struct Y4mSource {
 impl Y4mSource {
     /// Opens `path` (`-` for standard input) and reads its header.
     pub fn open(path: &str) -> Result<Self, SourceError> {
+        Self::open_stoppable(path, None)
+    }
+
+    /// [`Y4mSource::open`], and when `stop` is given, a read from a pipe,
+    /// FIFO or terminal gives up once `stop` is set: the header read
+    /// fails with [`SourceError::Stopped`], a frame read returns
+    /// [`Next::Waiting`] (the caller, seeing its flag, stops). Regular
+    /// files never block, so they are read directly.
+    pub fn open_stoppable(path: &str, stop: Option<Arc<AtomicBool>>) -> Result<Self, SourceError> {
+        let pollable = |fd: std::os::fd::BorrowedFd<'_>| {
+            !rustix::fs::fstat(fd).is_ok_and(|st| {
+                rustix::fs::FileType::from_raw_mode(st.st_mode) == rustix::fs::FileType::RegularFile
+            })
+        };
         let (reader, name): (Box<dyn Read + Send>, String) = if path == "-" {
-            (Box::new(io::stdin()), "y4m:- (stdin)".into())
+            let stdin = io::stdin();
+            let reader: Box<dyn Read + Send> = match &stop {
+                Some(stop) if pollable(stdin.as_fd()) => Box::new(StopOnSignal {
+                    inner: stdin,
+                    stop: stop.clone(),
+                }),
+                _ => Box::new(stdin),
+            };
+            (reader, "y4m:- (stdin)".into())
         } else {
-            let f = std::fs::File::open(path).map_err(|error| SourceError::Open {
-                what: format!("Y4M file `{path}`"),
+            let what = || format!("Y4M file `{path}`");
+            // Non-blocking, so that opening a FIFO does not wait for its
+            // writer (a stop signal could not end that wait); reads block
+            // again once it is open.
+            let f = {
+                use std::os::unix::fs::OpenOptionsExt;
+                std::fs::OpenOptions::new()
+                    .read(true)
+                    .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+                    .open(path)
+            }
+            .and_then(|f| {
+                let flags = rustix::fs::fcntl_getfl(&f)?;
+                rustix::fs::fcntl_setfl(&f, flags - rustix::fs::OFlags::NONBLOCK)?;
+                Ok(f)
+            })
+            .map_err(|error| SourceError::Open {
+                what: what(),
                 error,
             })?;
-            (Box::new(f), format!("y4m:{path}"))
+            let reader: Box<dyn Read + Send> = match &stop {
+                Some(stop) if pollable(f.as_fd()) => Box::new(StopOnSignal {
+                    inner: f,
+                    stop: stop.clone(),
+                }),
+                _ => Box::new(f),
+            };
+            (reader, format!("y4m:{path}"))
         };
-        Self::from_reader(reader, name)
+        let mut source = Self::from_reader_stoppable(reader, name, stop.clone());
+        if let (Err(SourceError::Io { .. }), Some(true)) =
+            (&source, stop.as_ref().map(|s| s.load(Ordering::Relaxed)))
+        {
+            source = Err(SourceError::Stopped);
+        }
+        source
     }
 
     /// Reads the header from any reader; `name` describes it in reports.
     pub fn from_reader(reader: Box<dyn Read + Send>, name: String) -> Result<Self, SourceError> {
+        Self::from_reader_stoppable(reader, name, None)
+    }
+
+    fn from_reader_stoppable(
+        reader: Box<dyn Read + Send>,
+        name: String,
+        stop: Option<Arc<AtomicBool>>,
+    ) -> Result<Self, SourceError> {
         let mut reader: Box<dyn BufRead + Send> =
             Box::new(BufReader::with_capacity(1 << 16, reader));
         let mut line = Vec::with_capacity(MAX_LINE);
@@ -203,6 +303,7 @@ impl Y4mSource {
         };
         Ok(Y4mSource {
             reader,
+            stop,
             header,
             info,
             scratch,
@@ -216,6 +317,13 @@ impl Y4mSource {
     /// The parsed stream header.
     pub fn header(&self) -> &Header {
         &self.header
+    }
+
+    /// Whether a stop was asked for (a read error then means the read gave up).
+    fn stopping(&self) -> bool {
+        self.stop
+            .as_ref()
+            .is_some_and(|s| s.load(Ordering::Relaxed))
     }
 
     fn fail(&self, what: String) -> SourceError {
@@ -253,6 +361,20 @@ impl FrameSource for Y4mSource {
     }
 
     fn next_frame(&mut self, frame: &mut Frame) -> Result<Next, SourceError> {
+        match self.read_frame(frame) {
+            // The read gave up for a stop; what it had read of the frame
+            // is lost, so the stream cannot go on.
+            Err(SourceError::Io { .. }) if self.stopping() => {
+                self.ended = true;
+                Ok(Next::Waiting)
+            }
+            other => other,
+        }
+    }
+}
+
+impl Y4mSource {
+    fn read_frame(&mut self, frame: &mut Frame) -> Result<Next, SourceError> {
         if self.ended {
             return Ok(Next::End);
         }

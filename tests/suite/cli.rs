@@ -343,25 +343,10 @@ fn signal_stops_cleanly_with_bye(signal: &str) {
         .status()
         .unwrap()
         .success());
-    // A blocked pipe read cannot see the flag until its frame arrives: keep
-    // feeding frames (never closing the pipe) until the process exits.
-    let one = common::synthetic_y4m(
-        Size {
-            width: 64,
-            height: 48,
-        },
-        1,
-    );
-    let frame = &one[one.iter().position(|&b| b == b'\n').unwrap() + 1..];
-    let mut sent = 4;
-    while child.try_wait().unwrap().is_none() && sent < 2000 {
-        if stdin.write_all(frame).is_err() {
-            break;
-        }
-        sent += 1;
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    assert!(sent < 2000, "the process ignored {signal}");
+    // The pipe stays open and quiet: the blocked read must give up by itself.
+    let status = wait_at_most(&mut child, std::time::Duration::from_secs(60))
+        .unwrap_or_else(|| panic!("the process ignored {signal} while its pipe was quiet"));
+    assert!(status.success(), "{signal}: {status:?}");
     let mut rest = hello.into_bytes();
     std::io::Read::read_to_end(&mut stdout, &mut rest).unwrap();
     let out = child.wait_with_output().unwrap();
@@ -372,9 +357,72 @@ fn signal_stops_cleanly_with_bye(signal: &str) {
     );
     let recs = records(&rest);
     assert_eq!(recs.last().unwrap()["type"], "bye");
-    // The pipe was never closed, so only the signal can have ended the run.
-    assert!(recs.last().unwrap()["frames"].as_u64().unwrap() <= sent);
+    assert!(recs.last().unwrap()["frames"].as_u64().unwrap() <= 4);
+    let status = recs.iter().rev().find(|r| r["type"] == "status").unwrap();
+    assert_eq!(status["source"], "ended");
     drop(stdin);
+}
+
+/// Waits for `child` to exit, for at most `limit`.
+fn wait_at_most(
+    child: &mut std::process::Child,
+    limit: std::time::Duration,
+) -> Option<std::process::ExitStatus> {
+    let start = std::time::Instant::now();
+    while start.elapsed() < limit {
+        if let Some(status) = child.try_wait().unwrap() {
+            return Some(status);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    None
+}
+
+/// A signal while the source is still opening (a pipe, or a FIFO with no
+/// writer yet, that has not sent its Y4M header) ends the run cleanly:
+/// exit 0, a log line saying so, no records (there was no stream to
+/// describe).
+#[test]
+fn signal_before_the_header_ends_cleanly() {
+    let dir = common::fresh_dir("cli-signal_before_the_header_ends_cleanly");
+    let fifo = dir.join("clip.fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    for uri in ["y4m:-".to_string(), format!("y4m:{}", fifo.display())] {
+        let mut child = Command::new(stature_bin())
+            .args(["run", "--source", &uri])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Signal handlers are in place before this line is logged.
+        let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+        let mut line = String::new();
+        while !line.contains("opening source") {
+            line.clear();
+            let n = std::io::BufRead::read_line(&mut stderr, &mut line).unwrap();
+            assert!(n > 0, "{uri}: stderr ended before the source was opened");
+        }
+        assert!(Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success());
+        let status = wait_at_most(&mut child, std::time::Duration::from_secs(60))
+            .unwrap_or_else(|| panic!("{uri}: SIGTERM ignored while waiting for the header"));
+        let mut rest = String::new();
+        std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+        assert!(status.success(), "{uri}: {status:?}: {rest}");
+        assert!(rest.contains("stopped by a signal before"), "{uri}: {rest}");
+        let mut out = Vec::new();
+        std::io::Read::read_to_end(&mut child.stdout.take().unwrap(), &mut out).unwrap();
+        assert!(out.is_empty(), "{uri}: {}", String::from_utf8_lossy(&out));
+    }
 }
 
 #[test]
