@@ -493,9 +493,29 @@ fn run_source(
         core::mem::take(&mut summary.heights),
     );
     reporter.finish(Duration::from_secs(5));
-    if io.join().is_err() {
+    let Ok(tallies) = io.join() else {
         log::error!("the report thread failed");
         return exit::INTERNAL;
+    };
+    // A sink that delivered nothing is a run whose reports nobody got
+    // (a broker or port unreachable throughout): not a clean end.
+    let mut silent_sink = false;
+    for t in tallies.iter().filter(|t| t.lost > 0) {
+        if t.lost_everything() {
+            silent_sink = true;
+            log::error!(
+                "report sink {}: none of the run's {} records was delivered",
+                t.name,
+                t.records
+            );
+        } else {
+            log::warn!(
+                "report sink {}: {} of {} records not delivered",
+                t.name,
+                t.lost,
+                t.records
+            );
+        }
     }
     log::info!(
         "{} frames, stopped by {:?}, {} records delivered, {} dropped",
@@ -513,6 +533,7 @@ fn run_source(
         }
         // (The snapshot's own error was logged when it failed.)
         None if snapshot.is_some_and(|s| matches!(s.result, Some(Err(_)))) => exit::UNAVAILABLE,
+        None if silent_sink => exit::UNAVAILABLE,
         None => exit::OK,
     }
 }

@@ -139,8 +139,28 @@ impl Reporter {
     }
 }
 
+/// What one sink did with the run's records, known when the I/O thread ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SinkTally {
+    /// The sink's kind (`stdout`, `file`, `udp`, `serial`, `mqtt`).
+    pub name: &'static str,
+    /// Records handed to it.
+    pub records: u64,
+    /// Of those, records it did not deliver (failed writes, and records
+    /// it accepted and later dropped).
+    pub lost: u64,
+}
+
+impl SinkTally {
+    /// Whether the sink delivered nothing of a run that had records.
+    pub fn lost_everything(&self) -> bool {
+        self.records > 0 && self.lost >= self.records
+    }
+}
+
 /// Starts the I/O thread writing every record from `rx` to every sink.
-/// The thread ends when the queue is closed and drained.
+/// The thread ends when the queue is closed and drained, and returns what
+/// each sink delivered.
 ///
 /// Returns once the thread has made its one-time allocations, so that an
 /// allocation count taken afterwards sees only the steady state: the first
@@ -154,22 +174,26 @@ pub fn spawn_io(
     mut sinks: Vec<Sink>,
     format: Format,
     counters: Arc<Counters>,
-) -> std::thread::JoinHandle<()> {
+) -> std::thread::JoinHandle<Vec<SinkTally>> {
     let (ready_tx, ready_rx) = bounded::<()>(1);
     let handle = std::thread::Builder::new()
         .name("stature-io".into())
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
+            let mut records = 0u64;
             for s in sinks.iter_mut() {
                 s.attach_counters(&counters);
             }
             let mut deliver = |record: Record, sinks: &mut Vec<Sink>| {
+                records += 1;
                 let bytes = match encode::encode(&record, format, &mut buf) {
                     Ok(b) => b,
                     Err(e) => {
                         log::error!("report: {} record not encoded: {e}", record.kind());
                         counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
+                        // Lost at every sink alike.
+                        failures.iter_mut().for_each(|f| *f += 1);
                         return;
                     }
                 };
@@ -236,6 +260,15 @@ pub fn spawn_io(
                     log::warn!("report: {} sink: final flush failed: {e}", s.name());
                 }
             }
+            sinks
+                .iter()
+                .zip(&failures)
+                .map(|(s, &failed)| SinkTally {
+                    name: s.name(),
+                    records,
+                    lost: (failed + s.lost_after_accepting()).min(records),
+                })
+                .collect()
         })
         .expect("spawning the I/O thread at start-up");
     // An error means the thread died before it was ready; `join` reports it.

@@ -281,6 +281,18 @@ impl Sink {
         r
     }
 
+    /// Records this sink accepted and then lost on its own (an MQTT
+    /// outbox that overflowed while the broker was away, or that still
+    /// held records at the shutdown timeout). 0 for the byte-stream sinks,
+    /// whose losses are the failed writes.
+    pub fn lost_after_accepting(&self) -> u64 {
+        match self {
+            #[cfg(feature = "mqtt")]
+            Sink::Mqtt(m) => m.dropped(),
+            _ => 0,
+        }
+    }
+
     /// Writes one encoded record. An error means the record was not delivered.
     pub fn write_record(&mut self, bytes: &[u8]) -> io::Result<()> {
         match self {

@@ -1006,7 +1006,10 @@ fn wrong_credentials_are_reported_and_the_run_goes_on() {
 
     let (out, records) = run(None);
     let log = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{log}");
+    // The run goes on (below: the file got it all), but it ends with exit
+    // 3 and an error naming the sink that delivered nothing.
+    assert_eq!(out.status.code(), Some(3), "{log}");
+    assert!(log.contains("report sink mqtt: none of the run's"), "{log}");
     assert!(
         log.contains("refused the connection")
             && (log.contains("not authorised") || log.contains("bad user name or password"))
