@@ -249,7 +249,7 @@ impl Config {
         )?;
         for s in &self.report.sinks {
             crate::report::sink::SinkSpec::parse(s)
-                .map_err(|e| ConfigError::new("report.sinks", s, e))?;
+                .map_err(|e| ConfigError::invalid("report.sinks", s, e))?;
         }
         self.report.mqtt.validate()?;
         self.detect.validate()?;

@@ -457,7 +457,7 @@ fn run_source(
         let spec = match sink::SinkSpec::parse(spec) {
             Ok(s) => s,
             Err(e) => {
-                log::error!("{e}");
+                log::error!("report sink `{spec}`: {e}");
                 return exit::BAD_INPUT;
             }
         };

@@ -40,40 +40,49 @@ const SINK_FORMS: &str =
 impl SinkSpec {
     /// Parses `stdout`, `file:PATH`, `udp:HOST:PORT`, `serial:PATH?baud=N`
     /// or `mqtt:HOST[:PORT]?...` (see [`MqttSpec::parse`]).
+    ///
+    /// The error is the reason only, without `s`: the caller names the
+    /// value (a config key or an option) once, in front of it.
     pub fn parse(s: &str) -> Result<Self, String> {
         if s == "stdout" {
             return Ok(SinkSpec::Stdout);
         }
         let (scheme, rest) = s
             .split_once(':')
-            .ok_or_else(|| format!("`{s}`: expected {SINK_FORMS}"))?;
+            .ok_or_else(|| format!("expected {SINK_FORMS}"))?;
         match scheme {
-            "file" if !rest.is_empty() => Ok(SinkSpec::File(rest.into())),
+            "file" if rest.is_empty() => Err("expected file:PATH".into()),
+            "file" => Ok(SinkSpec::File(rest.into())),
             "udp" => {
-                let (host, port) = rest
+                let (_, port) = rest
                     .rsplit_once(':')
-                    .ok_or_else(|| format!("`{s}`: expected udp:HOST:PORT"))?;
-                if host.is_empty() || port.parse::<u16>().map_or(true, |p| p == 0) {
+                    .filter(|(h, p)| !h.is_empty() && !p.is_empty())
+                    .ok_or("expected udp:HOST:PORT")?;
+                if port.parse::<u16>().map_or(true, |p| p == 0) {
                     return Err(format!(
-                        "`{s}`: expected udp:HOST:PORT with a port in 1..=65535"
+                        "port `{port}` is not in 1..=65535 (expected udp:HOST:PORT)"
                     ));
                 }
                 Ok(SinkSpec::Udp(rest.into()))
             }
             "serial" => {
                 let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
+                if path.is_empty() {
+                    return Err("expected serial:/dev/ttyX?baud=N".into());
+                }
                 if !path.starts_with('/') {
-                    return Err(format!("`{s}`: serial device must be an absolute path"));
+                    return Err(format!(
+                        "serial device `{path}` is not an absolute path (expected serial:/dev/ttyX?baud=N)"
+                    ));
                 }
                 let mut baud = 115_200;
                 for (k, v) in crate::source::query_pairs(query) {
                     match (k, v.parse::<u32>()) {
                         ("baud", Ok(b)) if (300..=4_000_000).contains(&b) => baud = b,
-                        _ => {
-                            return Err(format!(
-                                "`{s}`: serial option `{k}={v}` (expected baud=300..=4000000)"
-                            ))
+                        ("baud", _) => {
+                            return Err(format!("`baud={v}`: expected a rate in 300..=4000000"))
                         }
+                        _ => return Err(format!("unknown serial option `{k}` (expected baud=N)")),
                     }
                 }
                 Ok(SinkSpec::Serial {
@@ -82,7 +91,7 @@ impl SinkSpec {
                 })
             }
             "mqtt" => MqttSpec::parse(rest).map(SinkSpec::Mqtt),
-            _ => Err(format!("`{s}`: unknown sink (expected {SINK_FORMS})")),
+            _ => Err(format!("unknown sink `{scheme}:` (expected {SINK_FORMS})")),
         }
     }
 }
@@ -436,6 +445,61 @@ mod tests {
             "nope",
         ] {
             assert!(SinkSpec::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_bad_spec_is_named_once_with_one_reason() {
+        let form = "mqtt:HOST[:PORT][?topic=T&qos=0|1&client_id=ID&tls=true|false&ca=FILE&ha_discovery=true|false]";
+        for (bad, reason) in [
+            ("udp:", "expected udp:HOST:PORT"),
+            ("udp:host", "expected udp:HOST:PORT"),
+            ("udp:host:", "expected udp:HOST:PORT"),
+            (
+                "udp:host:notaport",
+                "port `notaport` is not in 1..=65535 (expected udp:HOST:PORT)",
+            ),
+            ("serial:", "expected serial:/dev/ttyX?baud=N"),
+            (
+                "serial:ttyS0",
+                "serial device `ttyS0` is not an absolute path (expected serial:/dev/ttyX?baud=N)",
+            ),
+            (
+                "serial:/dev/ttyS0?baud=x",
+                "`baud=x`: expected a rate in 300..=4000000",
+            ),
+            (
+                "serial:/dev/ttyS0?parity=odd",
+                "unknown serial option `parity` (expected baud=N)",
+            ),
+            ("file:", "expected file:PATH"),
+            ("mqtt:", &format!("expected {form}")),
+            ("mqtt:h:", &format!("expected {form}")),
+            ("mqtt:h:0", "port `0` is not in 1..=65535"),
+            ("mqtt:h?qos=7", "`qos=7`: expected 0 or 1"),
+            ("mqtt:h?tls=maybe", "`tls=maybe`: expected true or false"),
+            ("mqtt:h?ca=", "`ca=`: expected the path of a PEM file"),
+            (
+                "mqtt:h?bogus=1",
+                "unknown mqtt option `bogus` (expected topic, qos, client_id, tls, ca or ha_discovery)",
+            ),
+            (
+                "bogus:x",
+                "unknown sink `bogus:` (expected stdout, file:PATH, udp:HOST:PORT, serial:PATH?baud=N or mqtt:HOST[:PORT]?topic=T&..)",
+            ),
+            (
+                "nope",
+                "expected stdout, file:PATH, udp:HOST:PORT, serial:PATH?baud=N or mqtt:HOST[:PORT]?topic=T&..",
+            ),
+        ] {
+            assert_eq!(SinkSpec::parse(bad).unwrap_err(), reason, "{bad}");
+            // As the user sees it: the value once, then the reason.
+            let mut cfg = crate::config::Config::default();
+            cfg.report.sinks = vec![bad.into()];
+            assert_eq!(
+                cfg.validate().unwrap_err().to_string(),
+                format!("config key `report.sinks` = {bad}: {reason}")
+            );
         }
     }
 }

@@ -245,6 +245,68 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             3,
             "report file",
         ),
+        // A bad sink is named once, with one reason (before: "expected
+        // `udp:host`: expected udp:HOST:PORT").
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "udp:host".into(),
+            ],
+            2,
+            "config key `report.sinks` = udp:host: expected udp:HOST:PORT\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "file:".into(),
+            ],
+            2,
+            "= file:: expected file:PATH\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "serial:/dev/ttyS0?baud=x".into(),
+            ],
+            2,
+            "= serial:/dev/ttyS0?baud=x: `baud=x`: expected a rate in 300..=4000000\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "mqtt:h?qos=7".into(),
+            ],
+            2,
+            "= mqtt:h?qos=7: `qos=7`: expected 0 or 1\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "mqtt:h?bogus=1".into(),
+            ],
+            2,
+            "= mqtt:h?bogus=1: unknown mqtt option `bogus` (expected topic, qos, client_id, tls, ca or ha_discovery)\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "bogus:x".into(),
+            ],
+            2,
+            "= bogus:x: unknown sink `bogus:` (expected stdout,",
+        ),
         (
             vec!["--config".into(), "/nonexistent.toml".into()],
             2,

@@ -211,22 +211,25 @@ pub struct MqttSpec {
 const MQTT_FORM: &str =
     "mqtt:HOST[:PORT][?topic=T&qos=0|1&client_id=ID&tls=true|false&ca=FILE&ha_discovery=true|false]";
 
+/// The keys of an `mqtt:` URI's query, for the message about an unknown one.
+const MQTT_KEYS: &str = "topic, qos, client_id, tls, ca or ha_discovery";
+
 impl MqttSpec {
     /// Parses what follows `mqtt:`. Credentials are refused: a command line
     /// is visible to every user of the machine (`ps`).
+    ///
+    /// The error is the reason only, without the URI: the caller names it.
     pub fn parse(rest: &str) -> Result<Self, String> {
         let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
         let (host, port) = if let Some(v6) = addr.strip_prefix('[') {
-            let (h, tail) = v6
-                .split_once(']')
-                .ok_or_else(|| format!("`mqtt:{rest}`: unclosed `[` in the host"))?;
+            let (h, tail) = v6.split_once(']').ok_or("unclosed `[` in the host")?;
             match tail {
                 "" => (h, None),
                 p => (
                     h,
                     Some(
                         p.strip_prefix(':')
-                            .ok_or_else(|| format!("`mqtt:{rest}`: expected {MQTT_FORM}"))?,
+                            .ok_or_else(|| format!("expected {MQTT_FORM}"))?,
                     ),
                 ),
             }
@@ -236,39 +239,40 @@ impl MqttSpec {
                 None => (addr, None),
             }
         };
-        if host.is_empty() || host.contains(['/', ' ']) {
-            return Err(format!("`mqtt:{rest}`: expected {MQTT_FORM}"));
+        if host.is_empty() || host.contains(['/', ' ']) || port == Some("") {
+            return Err(format!("expected {MQTT_FORM}"));
         }
         let port = match port {
             None => None,
             Some(p) => match p.parse::<u16>() {
                 Ok(n) if n > 0 => Some(n),
-                _ => return Err(format!("`mqtt:{rest}`: port `{p}` is not in 1..=65535")),
+                _ => return Err(format!("port `{p}` is not in 1..=65535")),
             },
         };
         let mut q = MqttQuery::default();
         let bool_of = |k: &str, v: &str| match v {
             "true" | "1" | "yes" => Ok(true),
             "false" | "0" | "no" => Ok(false),
-            _ => Err(format!("`mqtt:{rest}`: `{k}={v}`: expected true or false")),
+            _ => Err(format!("`{k}={v}`: expected true or false")),
         };
         for (k, v) in crate::source::query_pairs(query) {
             match k {
                 "topic" => {
-                    check_topic(v).map_err(|e| format!("`mqtt:{rest}`: topic `{v}`: expected {e}"))?;
+                    check_topic(v).map_err(|e| format!("topic `{v}`: expected {e}"))?;
                     q.topic = Some(v.into());
                 }
                 "qos" => match v {
                     "0" => q.qos = Some(0),
                     "1" => q.qos = Some(1),
-                    _ => return Err(format!("`mqtt:{rest}`: `qos={v}`: expected 0 or 1")),
+                    _ => return Err(format!("`qos={v}`: expected 0 or 1")),
                 },
                 "client_id" => {
-                    check_client_id(v).map_err(|e| format!("`mqtt:{rest}`: client_id `{v}`: expected {e}"))?;
+                    check_client_id(v).map_err(|e| format!("client_id `{v}`: expected {e}"))?;
                     q.client_id = Some(v.into());
                 }
                 "tls" => q.tls = Some(bool_of(k, v)?),
-                "ca" if !v.is_empty() => q.ca = Some(v.into()),
+                "ca" if v.is_empty() => return Err("`ca=`: expected the path of a PEM file".into()),
+                "ca" => q.ca = Some(v.into()),
                 "ha_discovery" => q.ha_discovery = Some(bool_of(k, v)?),
                 "username" | "password" | "user" | "pass" => {
                     return Err(format!(
@@ -277,7 +281,7 @@ impl MqttSpec {
                          STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD"
                     ))
                 }
-                _ => return Err(format!("`mqtt:{rest}`: unknown option `{k}` (expected {MQTT_FORM})")),
+                _ => return Err(format!("unknown mqtt option `{k}` (expected {MQTT_KEYS})")),
             }
         }
         Ok(MqttSpec {
