@@ -50,6 +50,9 @@ impl SinkSpec {
         let (scheme, rest) = s
             .split_once(':')
             .ok_or_else(|| format!("expected {SINK_FORMS}"))?;
+        if let ("udp" | "mqtt", Some(after)) = (scheme, rest.strip_prefix("//")) {
+            return Err(without_slashes(scheme, after));
+        }
         match scheme {
             "file" if rest.is_empty() => Err("expected file:PATH".into()),
             "file" => Ok(SinkSpec::File(rest.into())),
@@ -94,6 +97,42 @@ impl SinkSpec {
             _ => Err(format!("unknown sink `{scheme}:` (expected {SINK_FORMS})")),
         }
     }
+}
+
+/// The message for a URL-style `udp://..` or `mqtt://..`: these sinks take
+/// `HOST:PORT` right after the colon, and `//` would become part of the
+/// host name (a UDP destination that fails to resolve only when the run
+/// starts). It shows the value as it should have been written.
+fn without_slashes(scheme: &str, after: &str) -> String {
+    let (authority, query) = match after.split_once('?') {
+        Some((a, q)) => (a, Some(q)),
+        None => (after, None),
+    };
+    // `mqtt://host:1883/` and `mqtt://user@host` are URL habits too.
+    let authority = authority.trim_end_matches('/');
+    let (credentials, host) = match authority.rsplit_once('@') {
+        Some((_, h)) => (true, h),
+        None => (false, authority),
+    };
+    let mut fixed = if host.is_empty() {
+        match scheme {
+            "udp" => "udp:HOST:PORT".to_string(),
+            _ => "mqtt:HOST[:PORT]".to_string(),
+        }
+    } else {
+        format!("{scheme}:{host}")
+    };
+    if let Some(q) = query.filter(|q| !q.is_empty()) {
+        fixed = format!("{fixed}?{q}");
+    }
+    let mut msg = format!("write `{fixed}`, without `//`");
+    if credentials {
+        msg.push_str(
+            " (credentials go in [report.mqtt] username/password or \
+             STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD)",
+        );
+    }
+    msg
 }
 
 /// An open sink.
@@ -446,6 +485,41 @@ mod tests {
         ] {
             assert!(SinkSpec::parse(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn url_style_slashes_are_refused_with_the_form_to_write() {
+        for (bad, reason) in [
+            (
+                "mqtt://127.0.0.1:1883",
+                "write `mqtt:127.0.0.1:1883`, without `//`",
+            ),
+            ("mqtt://broker", "write `mqtt:broker`, without `//`"),
+            (
+                "mqtt://broker:1883/?topic=a/b&qos=1",
+                "write `mqtt:broker:1883?topic=a/b&qos=1`, without `//`",
+            ),
+            ("mqtt://[::1]:1883", "write `mqtt:[::1]:1883`, without `//`"),
+            ("mqtt://", "write `mqtt:HOST[:PORT]`, without `//`"),
+            (
+                "udp://127.0.0.1:9000",
+                "write `udp:127.0.0.1:9000`, without `//`",
+            ),
+            ("udp://", "write `udp:HOST:PORT`, without `//`"),
+        ] {
+            assert_eq!(SinkSpec::parse(bad).unwrap_err(), reason, "{bad}");
+        }
+        let e = SinkSpec::parse("mqtt://cam:secret@broker").unwrap_err();
+        assert!(
+            e.starts_with("write `mqtt:broker`, without `//` (credentials go in"),
+            "{e}"
+        );
+        assert!(!e.contains("secret"), "{e}");
+        // A file or serial path may start with `//` (POSIX reads it as `/`).
+        assert_eq!(
+            SinkSpec::parse("file:///tmp/x.jsonl"),
+            Ok(SinkSpec::File("///tmp/x.jsonl".into()))
+        );
     }
 
     #[test]

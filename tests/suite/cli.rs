@@ -245,6 +245,29 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             3,
             "report file",
         ),
+        // URL-style `//` (before: a confusing "expected mqtt:HOST.." for
+        // MQTT, and a UDP destination `//127.0.0.1:9000` that failed to
+        // resolve only once the run started, exit code 3).
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "mqtt://127.0.0.1:1883".into(),
+            ],
+            2,
+            "= mqtt://127.0.0.1:1883: write `mqtt:127.0.0.1:1883`, without `//`\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "udp://127.0.0.1:9000".into(),
+            ],
+            2,
+            "= udp://127.0.0.1:9000: write `udp:127.0.0.1:9000`, without `//`\n",
+        ),
         // A bad sink is named once, with one reason (before: "expected
         // `udp:host`: expected udp:HOST:PORT").
         (
