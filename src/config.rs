@@ -252,6 +252,8 @@ impl Config {
                 .map_err(|e| ConfigError::invalid("report.sinks", s, e))?;
         }
         self.report.mqtt.validate()?;
+        crate::snapshot::check_path(Path::new(&self.run.snapshot))
+            .map_err(|e| ConfigError::invalid("run.snapshot", &self.run.snapshot, e))?;
         self.detect.validate()?;
         self.classify.validate()?;
         self.track.validate()?;

@@ -300,8 +300,8 @@ fn main() {
             verbosity: Verbosity::default(),
         }),
         Some(Command::Demo(a)) => demo(a),
-        Some(Command::Run(a)) => run_cmd(a.run, a.snapshot, false),
-        Some(Command::Snapshot(a)) => run_cmd(a.run, Some(a.out), true),
+        Some(Command::Run(a)) => run_cmd(a.run, a.snapshot.map(|p| ("--snapshot", p)), false),
+        Some(Command::Snapshot(a)) => run_cmd(a.run, Some(("--out", a.out)), true),
         Some(Command::Config(a)) => config_cmd(a),
         Some(Command::Train(a)) => train_cmd(a),
         Some(Command::Sim(a)) => sim_cmd(a),
@@ -332,8 +332,9 @@ fn config_cmd(a: ConfigArgs) -> i32 {
     exit::OK
 }
 
-/// Builds the configuration from the file and the command line.
-fn resolve_config(a: &RunArgs) -> Result<Config, ConfigError> {
+/// Builds the configuration from the file and the command line
+/// (`snapshot`: the path of `--snapshot` or `--out`).
+fn resolve_config(a: &RunArgs, snapshot: Option<&PathBuf>) -> Result<Config, ConfigError> {
     let mut cfg = match &a.config {
         Some(p) => Config::load(p)?,
         None => Config::default(),
@@ -356,25 +357,34 @@ fn resolve_config(a: &RunArgs) -> Result<Config, ConfigError> {
     if let Some(w) = &a.weights {
         cfg.classify.weights = w.display().to_string();
     }
+    if let Some(p) = snapshot {
+        cfg.run.snapshot = p.display().to_string();
+    }
     a.scale.apply(&mut cfg);
     cfg.validate()?;
     Ok(cfg)
 }
 
 /// `stature run`, and `stature snapshot` (`until_confident`: stop once
-/// the calibration is confident enough to measure).
-fn run_cmd(a: RunArgs, snapshot: Option<PathBuf>, until_confident: bool) -> i32 {
+/// the calibration is confident enough to measure). `snapshot` is the
+/// snapshot path given on the command line and the option that gave it.
+fn run_cmd(a: RunArgs, snapshot: Option<(&str, PathBuf)>, until_confident: bool) -> i32 {
     stature::logger::init(a.verbosity.level());
-    let mut cfg = match resolve_config(&a) {
+    // Checked here too so that the message names the option the user
+    // typed, not the config key `run.snapshot` it lands in.
+    if let Some((option, p)) = &snapshot {
+        if let Err(e) = stature::snapshot::check_path(p) {
+            log::error!("{}", ConfigError::invalid(option, p.display(), e));
+            return exit::BAD_INPUT;
+        }
+    }
+    let cfg = match resolve_config(&a, snapshot.as_ref().map(|(_, p)| p)) {
         Ok(c) => c,
         Err(e) => {
             log::error!("{e}");
             return exit::BAD_INPUT;
         }
     };
-    if let Some(p) = snapshot {
-        cfg.run.snapshot = p.display().to_string();
-    }
     run_pipeline(&cfg, until_confident)
 }
 

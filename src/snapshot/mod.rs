@@ -533,6 +533,19 @@ fn legend(c: &mut Canvas, font: &MonoFont<'_>) {
     }
 }
 
+/// Refuses a path whose extension names another format: the snapshot is
+/// always PNG, and a `.jpg` name would mislead every viewer and upload
+/// that trusts it. A path without an extension makes no such claim and
+/// is accepted. Checked with the other settings, before anything opens.
+pub fn check_path(path: &Path) -> Result<(), &'static str> {
+    match path.extension() {
+        Some(e) if !e.eq_ignore_ascii_case("png") => {
+            Err("only PNG is written: give a path ending in `.png`")
+        }
+        _ => Ok(()),
+    }
+}
+
 /// A snapshot path that cannot be used.
 #[derive(Debug)]
 pub struct SnapshotError {

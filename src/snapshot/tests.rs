@@ -314,6 +314,24 @@ fn snapshot_file_is_checked_at_creation_and_replaced_whole() {
 }
 
 #[test]
+fn only_png_names_or_no_extension_are_accepted() {
+    for ok in [
+        "s.png",
+        "S.PNG",
+        "dir.d/s.Png",
+        "snapshot",
+        "/srv/www/view",
+        "",
+    ] {
+        assert_eq!(check_path(Path::new(ok)), Ok(()), "{ok}");
+    }
+    for bad in ["s.jpg", "s.JPEG", "s.png.bak", "s.gif", "dir.png/s.webp"] {
+        let e = check_path(Path::new(bad)).unwrap_err();
+        assert!(e.contains("only PNG is written"), "{bad}: {e}");
+    }
+}
+
+#[test]
 fn labels_keep_clear_of_each_other() {
     let a = mark(true);
     let b = Mark {

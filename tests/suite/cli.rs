@@ -660,6 +660,63 @@ fn unwritable_snapshot_path_is_exit_3_before_the_run_starts() {
 }
 
 #[test]
+fn a_snapshot_path_naming_another_format_is_exit_2_before_the_run_starts() {
+    let dir = common::fresh_dir("cli-a_snapshot_path_naming_another_format");
+    let clip = write_clip(&dir, "ext.y4m", 3);
+    let src = format!("y4m:{}", clip.display());
+    // Before, each of these ran and wrote a PNG under the other name.
+    let jpg = dir.join("x.jpg").display().to_string();
+    let jpeg = dir.join("x.JPEG").display().to_string();
+    for (args, want) in [
+        (
+            vec!["run", "--source", &src, "--snapshot", &jpg],
+            format!(
+                "option `--snapshot` = {jpg}: only PNG is written: give a path ending in `.png`"
+            ),
+        ),
+        (
+            vec!["snapshot", "--source", &src, "--out", &jpeg],
+            format!("option `--out` = {jpeg}: only PNG is written"),
+        ),
+    ] {
+        let out = run(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(&want), "{args:?}: {err}");
+        assert_eq!(
+            err.lines().filter(|l| l.contains("ERROR")).count(),
+            1,
+            "{err}"
+        );
+        assert!(out.stdout.is_empty(), "the run never started: no hello");
+    }
+    let cfg = dir.join("gif.toml");
+    std::fs::write(&cfg, "[run]\nsnapshot = \"view.gif\"\n").unwrap();
+    let out = run(&["config", "--check", &cfg.display().to_string()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("config key `run.snapshot` = view.gif: only PNG is written"),
+        "{err}"
+    );
+    // Any case of `.png`, and a name without an extension, are written.
+    for name in ["upper.PNG", "no-extension"] {
+        let path = dir.join(name);
+        let out = run(&[
+            "run",
+            "--source",
+            &src,
+            "--snapshot",
+            &path.display().to_string(),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{name}: {err}");
+        assert_eq!(crate::snapshot::read_png(&path).0, (64, 48), "{name}");
+    }
+    assert!(!dir.join("x.jpg").exists() && !dir.join("x.jpg.tmp").exists());
+}
+
+#[test]
 fn snapshot_command_stops_once_the_calibration_is_confident() {
     let dir = common::fresh_dir("cli-snapshot_command_stops_once_the_calibration_is_confident");
     // With a threshold of 0 the first estimate is confident enough.
