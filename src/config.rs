@@ -247,10 +247,16 @@ impl Config {
             self.report.status_interval_s,
             0.1..=3600.0,
         )?;
+        let mut mqtt_sinks = Vec::new();
         for s in &self.report.sinks {
-            crate::report::sink::SinkSpec::parse(s)
+            let spec = crate::report::sink::SinkSpec::parse(s)
                 .map_err(|e| ConfigError::invalid("report.sinks", s, e))?;
+            if let crate::report::sink::SinkSpec::Mqtt(m) = spec {
+                mqtt_sinks.push((s.as_str(), m));
+            }
         }
+        crate::report::mqtt::check_client_ids(&mqtt_sinks, &self.report.mqtt)
+            .map_err(|(s, e)| ConfigError::invalid("report.sinks", s, e))?;
         self.report.mqtt.validate()?;
         crate::snapshot::check_path(Path::new(&self.run.snapshot))
             .map_err(|e| ConfigError::invalid("run.snapshot", &self.run.snapshot, e))?;

@@ -268,6 +268,20 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             2,
             "= udp://127.0.0.1:9000: write `udp:127.0.0.1:9000`, without `//`\n",
         ),
+        // Two MQTT sinks with one client id would take turns on a broker
+        // (before: accepted, each dropped whenever the other connected).
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "mqtt:127.0.0.1:1".into(),
+                "--report".into(),
+                "mqtt:127.0.0.1:2".into(),
+            ],
+            2,
+            "= mqtt:127.0.0.1:2: same MQTT client id `stature-",
+        ),
         // A bad sink is named once, with one reason (before: "expected
         // `udp:host`: expected udp:HOST:PORT").
         (

@@ -292,6 +292,64 @@ impl MqttSpec {
     }
 }
 
+impl MqttSpec {
+    /// The client id set for this sink: the URI's `client_id`, else
+    /// `[report.mqtt] client_id`; `None` means the default,
+    /// `stature-<hostname>`.
+    pub fn configured_client_id(&self, cfg: &MqttConfig) -> Option<String> {
+        self.query
+            .client_id
+            .clone()
+            .filter(|s| !s.is_empty())
+            .or_else(|| Some(cfg.client_id.clone()).filter(|s| !s.is_empty()))
+    }
+}
+
+/// Refuses two `mqtt:` sinks (each as written and parsed) that would
+/// connect with the same client id: a broker keeps one session per id and
+/// drops the older connection whenever the other one connects, so the two
+/// would take turns, each losing records. Two different brokers are held
+/// to it too, since two addresses (`localhost` and `127.0.0.1`, ports 1883
+/// and 8883) may well reach the same broker. Ids are not made distinct
+/// behind the user's back: broker ACLs and the Home Assistant device (named
+/// after the id) depend on them.
+///
+/// The error is the second sink as written and the reason.
+pub fn check_client_ids<'a>(
+    sinks: &[(&'a str, MqttSpec)],
+    cfg: &MqttConfig,
+) -> Result<(), (&'a str, String)> {
+    let ids: Vec<Option<String>> = sinks
+        .iter()
+        .map(|(_, m)| m.configured_client_id(cfg))
+        .collect();
+    for (i, (uri, m)) in sinks.iter().enumerate() {
+        let Some(first) = (0..i).find(|&j| ids[j] == ids[i]) else {
+            continue;
+        };
+        let id = ids[i]
+            .clone()
+            .unwrap_or_else(|| format!("stature-{}", host_id()));
+        let new_id = format!("{id}-{}", i + 1);
+        let fix = if m.query.client_id.is_some() {
+            format!("`client_id={new_id}`")
+        } else if uri.contains('?') {
+            format!("`{uri}&client_id={new_id}`")
+        } else {
+            format!("`{uri}?client_id={new_id}`")
+        };
+        return Err((
+            uri,
+            format!(
+                "same MQTT client id `{id}` as `{}` (a broker disconnects one whenever the other \
+                 connects): give each mqtt: sink its own with `client_id=`, e.g. {fix}",
+                sinks[first].0
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Everything a connection needs: the config file, the URI and the
 /// environment merged, defaults filled in.
 #[derive(Clone, PartialEq)]
@@ -352,11 +410,8 @@ impl MqttSettings {
         let q = &spec.query;
         let tls = q.tls.unwrap_or(cfg.tls);
         let host_id = host_id();
-        let client_id = q
-            .client_id
-            .clone()
-            .filter(|s| !s.is_empty())
-            .or_else(|| Some(cfg.client_id.clone()).filter(|s| !s.is_empty()))
+        let client_id = spec
+            .configured_client_id(cfg)
             .unwrap_or_else(|| format!("stature-{host_id}"));
         let topic = q
             .topic
@@ -678,6 +733,56 @@ mod tests {
         assert_eq!(d.port, 8883);
         assert!(d.topic.starts_with("stature/") && d.client_id.starts_with("stature-"));
         assert_eq!(d.credentials, None);
+    }
+
+    #[test]
+    fn two_sinks_with_one_client_id_are_refused_naming_the_id() {
+        let sinks = |uris: &[&'static str]| -> Vec<(&'static str, MqttSpec)> {
+            uris.iter()
+                .map(|u| (*u, MqttSpec::parse(&u["mqtt:".len()..]).unwrap()))
+                .collect()
+        };
+        let file = MqttConfig::default();
+        // Both default to stature-<hostname>, whatever their brokers.
+        let (uri, e) =
+            check_client_ids(&sinks(&["mqtt:a", "mqtt:b:1884?qos=1"]), &file).unwrap_err();
+        assert_eq!(uri, "mqtt:b:1884?qos=1");
+        let id = format!("stature-{}", host_id());
+        assert_eq!(
+            e,
+            format!(
+                "same MQTT client id `{id}` as `mqtt:a` (a broker disconnects one whenever the \
+                 other connects): give each mqtt: sink its own with `client_id=`, e.g. \
+                 `mqtt:b:1884?qos=1&client_id={id}-2`"
+            )
+        );
+        // The same id given twice: the suggestion is the key alone.
+        let (_, e) = check_client_ids(
+            &sinks(&["mqtt:a?client_id=cam", "mqtt:b", "mqtt:c?client_id=cam"]),
+            &file,
+        )
+        .unwrap_err();
+        assert!(e.contains("`cam` as `mqtt:a?client_id=cam`"), "{e}");
+        assert!(e.ends_with("e.g. `client_id=cam-3`"), "{e}");
+        // [report.mqtt] client_id applies to every sink without its own.
+        let named = MqttConfig {
+            client_id: "gate".into(),
+            ..Default::default()
+        };
+        let (_, e) = check_client_ids(&sinks(&["mqtt:a", "mqtt:b"]), &named).unwrap_err();
+        assert!(
+            e.contains("`gate` as `mqtt:a`") && e.contains("`mqtt:b?client_id=gate-2`"),
+            "{e}"
+        );
+        check_client_ids(&sinks(&["mqtt:a", "mqtt:b?client_id=gate-2"]), &named).unwrap();
+        check_client_ids(&sinks(&["mqtt:a?client_id=x", "mqtt:b"]), &file).unwrap();
+        check_client_ids(&sinks(&["mqtt:a"]), &file).unwrap();
+        // The id checked is the one the sink connects with.
+        let spec = MqttSpec::parse("b?client_id=").unwrap();
+        assert_eq!(
+            MqttSettings::resolve(&spec, &named, |_| None).client_id,
+            "gate"
+        );
     }
 
     #[test]
