@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Instructions per pixel of a bench binary under callgrind.
+# Instruction count of a bench binary under callgrind (the whole run,
+# start-up included; bench/loop_callgrind.sh gives the loop's instructions
+# per pixel and stage).
 #   bench/callgrind.sh BENCH [bench args...]
 # Builds the bench in release (no target-cpu=native: valgrind cannot run
 # AVX-512 and the product targets ARM), runs it under callgrind and prints
