@@ -61,12 +61,16 @@ pub mod snapshot;
 
 /// Process exit codes, shared by the binary and documented in the README.
 pub mod exit {
-    /// Clean end of stream or requested frame count reached.
+    /// Clean end: end of stream, requested frame count reached, or
+    /// SIGINT/SIGTERM (also before the source sent its first frame).
     pub const OK: i32 = 0;
     /// Internal failure (should not happen; a bug report is welcome).
     pub const INTERNAL: i32 = 1;
-    /// Bad input: unreadable or malformed config, frames or weights.
+    /// Bad input: unreadable or malformed config, command line, source URI,
+    /// frames or weights.
     pub const BAD_INPUT: i32 = 2;
-    /// A resource could not be opened (device, sink, state file directory).
+    /// Unavailable: a source, sink, state file or snapshot path that cannot
+    /// be opened or written, a feature not built in, or a report sink that
+    /// delivered none of the run's records.
     pub const UNAVAILABLE: i32 = 3;
 }
