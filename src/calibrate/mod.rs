@@ -78,8 +78,9 @@ pub struct CalibrateConfig {
     pub min_tilt_deg: f64,
     /// Above this tilt the view is "near vertical" (degrees).
     pub max_tilt_deg: f64,
-    /// A calibration record is sent when the focal length moves by this
-    /// fraction, or an angle by `emit_angle_deg`, or the confidence by 0.05.
+    /// A calibration record is sent when the focal length or the camera
+    /// height moves by this fraction, or an angle by `emit_angle_deg`, or
+    /// the confidence by 0.05.
     pub emit_focal_change: f64,
     /// Angle change that triggers a calibration record, degrees.
     pub emit_angle_deg: f64,
