@@ -38,6 +38,7 @@ pub mod dataset;
 pub mod frame;
 pub mod fuzz_entry;
 pub mod logger;
+pub mod qformat;
 pub mod replace;
 pub mod rng;
 

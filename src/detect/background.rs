@@ -131,22 +131,22 @@ pub struct Params {
 impl Params {
     /// Converts the validated config into fixed-point values.
     pub fn from_config(c: &DetectConfig) -> Self {
-        let q = |v: f64, one: f64, max: f64| (v * one).round().clamp(0.0, max);
-        let var = |v: f64| q(v, 2.0, 255.0).max(1.0) as u8;
+        use crate::qformat::{q1, q16, q8};
+        let var = |v: f64| q1(v).clamp(1, 255) as u8;
         Params {
             k: c.modes.clamp(1, 4) as usize,
             history: c.history.max(1),
-            tb_q16: q(c.background_ratio, 65536.0, 65535.0) as u32,
-            ct_q16: q(c.complexity_prior, 65536.0, 65535.0) as u32,
-            tb_sig_q8: q(c.background_sigma * c.background_sigma, 256.0, 6400.0) as u16,
-            tg_sig_q8: q(c.match_sigma * c.match_sigma, 256.0, 6400.0) as u16,
+            tb_q16: q16(c.background_ratio).min(65535),
+            ct_q16: q16(c.complexity_prior).min(65535),
+            tb_sig_q8: q8(c.background_sigma * c.background_sigma).min(6400) as u16,
+            tg_sig_q8: q8(c.match_sigma * c.match_sigma).min(6400) as u16,
             var_init: var(c.var_init),
             var_min: var(c.var_min),
             var_max: var(c.var_max),
-            fg_rate_q16: q(c.foreground_rate, 65536.0, 65536.0) as u32,
+            fg_rate_q16: q16(c.foreground_rate).min(65536),
             shadow: c.shadow,
-            shadow_lo_q8: q(c.shadow_min_ratio, 256.0, 256.0) as u32,
-            shadow_hi_q8: q(c.shadow_max_ratio, 256.0, 256.0) as u32,
+            shadow_lo_q8: q8(c.shadow_min_ratio).min(256),
+            shadow_hi_q8: q8(c.shadow_max_ratio).min(256),
             fast_startup: c.fast_startup,
             update_interval: c.update_interval.clamp(1, MAX_UPDATE_INTERVAL),
         }
@@ -638,9 +638,9 @@ impl Background {
             t: 0,
             frame: 0,
             gain_hist: vec![0; 1024],
-            gain_threshold_q8: (cfg.gain_threshold * 256.0).round() as u32,
+            gain_threshold_q8: crate::qformat::q8(cfg.gain_threshold),
             gain_compensation: cfg.gain_compensation,
-            relearn_fraction_q16: (cfg.relearn_fraction * 65536.0).round() as u32,
+            relearn_fraction_q16: crate::qformat::q16(cfg.relearn_fraction),
             force_slow: false,
             stats: FrameStats::default(),
         }

@@ -42,8 +42,8 @@ impl DeepShadow {
     /// From ratios in `(0, 1]`; `None` when `lo` is 0 (the pass is off).
     pub fn new(lo: f64, hi: f64) -> Option<Self> {
         (lo > 0.0).then(|| DeepShadow {
-            lo_q8: (lo * 256.0).round() as u32,
-            hi_q8: (hi * 256.0).round() as u32,
+            lo_q8: crate::qformat::q8(lo),
+            hi_q8: crate::qformat::q8(hi),
         })
     }
 

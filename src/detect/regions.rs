@@ -95,7 +95,7 @@ impl Labeller {
     /// region (at a stride the torso covers the crotch columns from near the
     /// top), and each part must keep `min_area` pixels.
     pub fn set_split(&mut self, valley: f64) {
-        self.split_q8 = (valley.clamp(0.0, 1.0) * 256.0).round() as u32;
+        self.split_q8 = crate::qformat::q8(valley).min(256);
     }
 
     fn find(&mut self, mut i: u32) -> u32 {
