@@ -53,6 +53,32 @@ impl SinkSpec {
         if let ("udp" | "mqtt", Some(after)) = (scheme, rest.strip_prefix("//")) {
             return Err(without_slashes(scheme, after));
         }
+        if scheme == "mqtts" {
+            // TLS is an option of `mqtt:`, not a scheme of its own.
+            let fixed = without_slashes("mqtt", rest.strip_prefix("//").unwrap_or(rest));
+            let tls = if rest.contains('?') {
+                "&tls=true"
+            } else {
+                "?tls=true"
+            };
+            return Err(fixed.replacen(
+                "`, without `//`",
+                &format!("{tls}` (TLS is an mqtt: option)"),
+                1,
+            ));
+        }
+        // `file://x.jsonl` is the path `//x.jsonl`, which POSIX reads as
+        // `/x.jsonl`: a file at the root, surely not what was meant
+        // (`file:///abs` is the absolute path, as a URL would have it).
+        if let ("file", Some(after)) = (scheme, rest.strip_prefix("//")) {
+            if !after.is_empty() && !after.starts_with('/') {
+                return Err(format!(
+                    "`file://{after}` names `/{after}` at the root of the file system: \
+                     write `file:{after}` for a path relative to the working directory, \
+                     or `file:/{after}`"
+                ));
+            }
+        }
         match scheme {
             "file" if rest.is_empty() => Err("expected file:PATH".into()),
             "file" => Ok(SinkSpec::File(rest.into())),
@@ -96,6 +122,20 @@ impl SinkSpec {
             "mqtt" => MqttSpec::parse(rest).map(SinkSpec::Mqtt),
             _ => Err(format!("unknown sink `{scheme}:` (expected {SINK_FORMS})")),
         }
+    }
+}
+
+/// `spec` as it may be shown in a log: a URL-style `user:password@` part
+/// (refused by [`SinkSpec::parse`], but echoed by the error that says so)
+/// becomes `***@`.
+pub fn redacted(spec: &str) -> std::borrow::Cow<'_, str> {
+    let Some((scheme, rest)) = spec.split_once("://") else {
+        return spec.into();
+    };
+    let end = rest.find(['/', '?']).unwrap_or(rest.len());
+    match rest[..end].rfind('@') {
+        Some(at) => format!("{scheme}://***{}", &rest[at..]).into(),
+        None => spec.into(),
     }
 }
 
@@ -515,6 +555,29 @@ mod tests {
             "{e}"
         );
         assert!(!e.contains("secret"), "{e}");
+        assert_eq!(
+            redacted("mqtt://cam:secret@broker:1883?topic=t"),
+            "mqtt://***@broker:1883?topic=t"
+        );
+        assert_eq!(redacted("mqtt:broker?topic=a@b"), "mqtt:broker?topic=a@b");
+        assert_eq!(redacted("udp://h:9/x@y"), "udp://h:9/x@y");
+        assert_eq!(
+            SinkSpec::parse("mqtts://broker:8883").unwrap_err(),
+            "write `mqtt:broker:8883?tls=true` (TLS is an mqtt: option)"
+        );
+        assert_eq!(
+            SinkSpec::parse("mqtts:broker").unwrap_err(),
+            "write `mqtt:broker?tls=true` (TLS is an mqtt: option)"
+        );
+        assert_eq!(
+            SinkSpec::parse("mqtts://broker?topic=t").unwrap_err(),
+            "write `mqtt:broker?topic=t&tls=true` (TLS is an mqtt: option)"
+        );
+        let e = SinkSpec::parse("file://x.jsonl").unwrap_err();
+        assert!(
+            e.contains("names `/x.jsonl` at the root") && e.contains("write `file:x.jsonl`"),
+            "{e}"
+        );
         // A file or serial path may start with `//` (POSIX reads it as `/`).
         assert_eq!(
             SinkSpec::parse("file:///tmp/x.jsonl"),

@@ -268,6 +268,27 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             2,
             "= udp://127.0.0.1:9000: write `udp:127.0.0.1:9000`, without `//`\n",
         ),
+        // The password of a URL-style sink is not echoed into the log.
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "mqtt://cam:Pa55word@127.0.0.1:1883".into(),
+            ],
+            2,
+            "= mqtt://***@127.0.0.1:1883: write `mqtt:127.0.0.1:1883`, without `//` (credentials go in",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "file://x.jsonl".into(),
+            ],
+            2,
+            "names `/x.jsonl` at the root of the file system",
+        ),
         // Two MQTT sinks with one client id would take turns on a broker
         // (before: accepted, each dropped whenever the other connected).
         (
