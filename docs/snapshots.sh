@@ -10,7 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet
-bin=target/release/stature
+bin=${CARGO_TARGET_DIR:-target}/release/stature
 "$bin" snapshot --source 'sim:plaza?seed=1' --out docs/snapshot-sim-plaza.png -q >/dev/null
 pets=../shared/data/pets2009-s2l1/vtest.avi
 test -f "$pets" || { echo "$pets is missing" >&2; exit 1; }

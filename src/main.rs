@@ -690,6 +690,10 @@ fn sim_cmd(a: SimArgs) -> i32 {
         exit::UNAVAILABLE
     };
     if let Some(path) = &a.png {
+        if let Err(e) = stature::snapshot::check_path(path) {
+            eprintln!("error: --png {}: {e}", path.display());
+            return exit::BAD_INPUT;
+        }
         if a.png_frame >= sim.frames() {
             eprintln!(
                 "error: --png-frame {} is past the clip ({} frames)",

@@ -734,6 +734,19 @@ fn a_snapshot_path_naming_another_format_is_exit_2_before_the_run_starts() {
         err.contains("config key `run.snapshot` = view.gif: only PNG is written"),
         "{err}"
     );
+    // `stature sim --png` writes the same format and is held to the same rule.
+    let jpg = dir.join("frame.jpg");
+    let out = run(&[
+        "sim",
+        "--scene",
+        "plaza",
+        "--png",
+        &jpg.display().to_string(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("only PNG is written"), "{err}");
+    assert!(!jpg.exists());
     // Any case of `.png`, and a name without an extension, are written.
     for name in ["upper.PNG", "no-extension"] {
         let path = dir.join(name);
