@@ -395,7 +395,7 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
     // Installed before the source opens: a pipe may take its time to send
     // the Y4M header, and a signal meanwhile should end the run cleanly.
     let stop = stop_on_signals();
-    // A pipe or FIFO may take its time to send its header: say what is awaited.
+    // Says what is awaited (and, for tests, that the handlers are in place).
     log::info!("opening source {}", cfg.source.uri);
     match source::open_stoppable(&cfg.source.uri, Some(stop.clone())) {
         Ok(mut s) => run_source(

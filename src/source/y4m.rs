@@ -139,8 +139,9 @@ const STOP_POLL: Duration = Duration::from_millis(100);
 
 /// A pipe (or terminal, FIFO, socket) read that gives up when `stop` is
 /// set, instead of blocking until the writer sends a byte. A stop signal
-/// interrupts `poll` (it is never restarted), so it is seen at once; the
-/// timeout only covers a flag set from another thread.
+/// delivered to this thread interrupts `poll` (never restarted), so it is
+/// seen at once; the timeout covers a signal that lands on another thread
+/// (the report thread) and a flag set by other code.
 struct StopOnSignal<R> {
     inner: R,
     stop: Arc<AtomicBool>,
@@ -166,6 +167,23 @@ impl<R: Read + AsFd> Read for StopOnSignal<R> {
                 Err(e) => return Err(e.into()),
             }
         }
+    }
+}
+
+/// `r` behind [`StopOnSignal`] when there is a stop flag and `r` is not a
+/// regular file (which never blocks, so it is read directly).
+fn stoppable<R: Read + AsFd + Send + 'static>(
+    r: R,
+    stop: &Option<Arc<AtomicBool>>,
+) -> Box<dyn Read + Send> {
+    use rustix::fs::{fstat, FileType};
+    let regular = || fstat(&r).is_ok_and(|st| FileType::from_raw_mode(st.st_mode).is_file());
+    match stop {
+        Some(stop) if !regular() => Box::new(StopOnSignal {
+            inner: r,
+            stop: stop.clone(),
+        }),
+        _ => Box::new(r),
     }
 }
 
@@ -196,23 +214,9 @@ impl Y4mSource {
     /// [`Next::Waiting`] (the caller, seeing its flag, stops). Regular
     /// files never block, so they are read directly.
     pub fn open_stoppable(path: &str, stop: Option<Arc<AtomicBool>>) -> Result<Self, SourceError> {
-        let pollable = |fd: std::os::fd::BorrowedFd<'_>| {
-            !rustix::fs::fstat(fd).is_ok_and(|st| {
-                rustix::fs::FileType::from_raw_mode(st.st_mode) == rustix::fs::FileType::RegularFile
-            })
-        };
-        let (reader, name): (Box<dyn Read + Send>, String) = if path == "-" {
-            let stdin = io::stdin();
-            let reader: Box<dyn Read + Send> = match &stop {
-                Some(stop) if pollable(stdin.as_fd()) => Box::new(StopOnSignal {
-                    inner: stdin,
-                    stop: stop.clone(),
-                }),
-                _ => Box::new(stdin),
-            };
-            (reader, "y4m:- (stdin)".into())
+        let (reader, name) = if path == "-" {
+            (stoppable(io::stdin(), &stop), "y4m:- (stdin)".into())
         } else {
-            let what = || format!("Y4M file `{path}`");
             // Non-blocking, so that opening a FIFO does not wait for its
             // writer (a stop signal could not end that wait); reads block
             // again once it is open.
@@ -229,17 +233,10 @@ impl Y4mSource {
                 Ok(f)
             })
             .map_err(|error| SourceError::Open {
-                what: what(),
+                what: format!("Y4M file `{path}`"),
                 error,
             })?;
-            let reader: Box<dyn Read + Send> = match &stop {
-                Some(stop) if pollable(f.as_fd()) => Box::new(StopOnSignal {
-                    inner: f,
-                    stop: stop.clone(),
-                }),
-                _ => Box::new(f),
-            };
-            (reader, format!("y4m:{path}"))
+            (stoppable(f, &stop), format!("y4m:{path}"))
         };
         let mut source = Self::from_reader_stoppable(reader, name, stop.clone());
         if let (Err(SourceError::Io { .. }), Some(true)) =
