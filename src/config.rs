@@ -250,7 +250,7 @@ impl Config {
         let mut mqtt_sinks = Vec::new();
         for s in &self.report.sinks {
             let spec = crate::report::sink::SinkSpec::parse(s).map_err(|e| {
-                ConfigError::invalid("report.sinks", &crate::report::sink::redacted(s), e)
+                ConfigError::invalid("report.sinks", crate::report::sink::redacted(s), e)
             })?;
             if let crate::report::sink::SinkSpec::Mqtt(m) = spec {
                 mqtt_sinks.push((s.as_str(), m));
