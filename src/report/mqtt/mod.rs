@@ -276,7 +276,7 @@ impl MqttSpec {
                 "ha_discovery" => q.ha_discovery = Some(bool_of(k, v)?),
                 "username" | "password" | "user" | "pass" => {
                     return Err(format!(
-                        "`{k}` is not accepted on the command line (every user of the machine can read it there): \
+                        "`{k}` is not accepted in an mqtt: sink (a sink is shown in process lists and logs): \
                          set [report.mqtt] username/password in the config file or the environment variables \
                          STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD"
                     ))
@@ -330,7 +330,10 @@ pub fn check_client_ids<'a>(
         let id = ids[i]
             .clone()
             .unwrap_or_else(|| format!("stature-{}", host_id()));
-        let new_id = format!("{id}-{}", i + 1);
+        // Cut so that the suggestion itself passes `check_client_id`.
+        let suffix = format!("-{}", i + 1);
+        let stem: String = id.chars().take(64 - suffix.len()).collect();
+        let new_id = format!("{stem}{suffix}");
         let fix = if m.query.client_id.is_some() {
             format!("`client_id={new_id}`")
         } else if uri.contains('?') {
@@ -775,6 +778,15 @@ mod tests {
             "{e}"
         );
         check_client_ids(&sinks(&["mqtt:a", "mqtt:b?client_id=gate-2"]), &named).unwrap();
+        // The suggested id is itself valid when the first is at the limit.
+        let long = "x".repeat(64);
+        let uris: Vec<&'static str> = ["a", "b"]
+            .map(|h| &*format!("mqtt:{h}?client_id={long}").leak())
+            .to_vec();
+        let (_, e) = check_client_ids(&sinks(&uris), &named).unwrap_err();
+        let suggested = e.rsplit("client_id=").next().unwrap().trim_end_matches('`');
+        assert_eq!(suggested, format!("{}-2", "x".repeat(62)), "{e}");
+        check_client_id(suggested).unwrap();
         check_client_ids(&sinks(&["mqtt:a?client_id=x", "mqtt:b"]), &file).unwrap();
         check_client_ids(&sinks(&["mqtt:a"]), &file).unwrap();
         // The id checked is the one the sink connects with.
