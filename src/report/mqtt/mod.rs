@@ -293,15 +293,15 @@ impl MqttSpec {
 }
 
 impl MqttSpec {
-    /// The client id set for this sink: the URI's `client_id`, else
-    /// `[report.mqtt] client_id`; `None` means the default,
-    /// `stature-<hostname>`.
-    pub fn configured_client_id(&self, cfg: &MqttConfig) -> Option<String> {
+    /// The client id this sink connects with: the URI's `client_id`, else
+    /// `[report.mqtt] client_id`, else `stature-<hostname>`.
+    pub fn client_id(&self, cfg: &MqttConfig) -> String {
         self.query
             .client_id
             .clone()
             .filter(|s| !s.is_empty())
             .or_else(|| Some(cfg.client_id.clone()).filter(|s| !s.is_empty()))
+            .unwrap_or_else(|| format!("stature-{}", host_id()))
     }
 }
 
@@ -319,17 +319,12 @@ pub fn check_client_ids<'a>(
     sinks: &[(&'a str, MqttSpec)],
     cfg: &MqttConfig,
 ) -> Result<(), (&'a str, String)> {
-    let ids: Vec<Option<String>> = sinks
-        .iter()
-        .map(|(_, m)| m.configured_client_id(cfg))
-        .collect();
+    let ids: Vec<String> = sinks.iter().map(|(_, m)| m.client_id(cfg)).collect();
     for (i, (uri, m)) in sinks.iter().enumerate() {
         let Some(first) = (0..i).find(|&j| ids[j] == ids[i]) else {
             continue;
         };
-        let id = ids[i]
-            .clone()
-            .unwrap_or_else(|| format!("stature-{}", host_id()));
+        let id = &ids[i];
         // Cut so that the suggestion itself passes `check_client_id`.
         let suffix = format!("-{}", i + 1);
         let stem: String = id.chars().take(64 - suffix.len()).collect();
@@ -413,9 +408,7 @@ impl MqttSettings {
         let q = &spec.query;
         let tls = q.tls.unwrap_or(cfg.tls);
         let host_id = host_id();
-        let client_id = spec
-            .configured_client_id(cfg)
-            .unwrap_or_else(|| format!("stature-{host_id}"));
+        let client_id = spec.client_id(cfg);
         let topic = q
             .topic
             .clone()
