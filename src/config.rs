@@ -185,6 +185,33 @@ pub struct BoardConfig {
     pub cpu_quota_percent: u32,
 }
 
+impl ReportConfig {
+    /// Every sink parsed, in order; refuses a sink that does not parse and
+    /// two `mqtt:` sinks with one client id.
+    pub fn sink_specs(&self) -> Result<Vec<crate::report::sink::SinkSpec>, ConfigError> {
+        use crate::report::sink::{redacted, SinkSpec};
+        let specs = self
+            .sinks
+            .iter()
+            .map(|s| {
+                SinkSpec::parse(s).map_err(|e| ConfigError::invalid("report.sinks", redacted(s), e))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mqtt_sinks: Vec<_> = self
+            .sinks
+            .iter()
+            .zip(&specs)
+            .filter_map(|(s, spec)| match spec {
+                SinkSpec::Mqtt(m) => Some((s.as_str(), m.clone())),
+                _ => None,
+            })
+            .collect();
+        crate::report::mqtt::check_client_ids(&mqtt_sinks, &self.mqtt)
+            .map_err(|(s, e)| ConfigError::invalid("report.sinks", s, e))?;
+        Ok(specs)
+    }
+}
+
 impl BoardConfig {
     /// Checks every value against its accepted range.
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -247,17 +274,7 @@ impl Config {
             self.report.status_interval_s,
             0.1..=3600.0,
         )?;
-        let mut mqtt_sinks = Vec::new();
-        for s in &self.report.sinks {
-            let spec = crate::report::sink::SinkSpec::parse(s).map_err(|e| {
-                ConfigError::invalid("report.sinks", crate::report::sink::redacted(s), e)
-            })?;
-            if let crate::report::sink::SinkSpec::Mqtt(m) = spec {
-                mqtt_sinks.push((s.as_str(), m));
-            }
-        }
-        crate::report::mqtt::check_client_ids(&mqtt_sinks, &self.report.mqtt)
-            .map_err(|(s, e)| ConfigError::invalid("report.sinks", s, e))?;
+        self.report.sink_specs()?;
         self.report.mqtt.validate()?;
         crate::snapshot::check_path(Path::new(&self.run.snapshot))
             .map_err(|e| ConfigError::invalid("run.snapshot", &self.run.snapshot, e))?;

@@ -139,18 +139,23 @@ fn metres(s: &str) -> Result<f64, String> {
 
 impl ScaleArgs {
     /// The scale mode given on the command line replaces the file's: the
-    /// other two ways of setting the scale are cleared.
-    fn apply(&self, cfg: &mut Config) {
+    /// other two ways of setting the scale are cleared. Returns the config
+    /// key set and the option that set it.
+    fn apply(&self, cfg: &mut Config) -> Option<(&'static str, &'static str)> {
         let c = &mut cfg.calibrate;
         if let Some(h) = self.camera_height {
             (c.camera_height_m, c.reference_height_m) = (h, 0.0);
+            return Some(("calibrate.camera_height_m", "--camera-height"));
         }
         if let Some(h) = self.reference_height {
             (c.camera_height_m, c.reference_height_m) = (0.0, h);
+            return Some(("calibrate.reference_height_m", "--reference-height"));
         }
         if let Some(h) = self.prior_height {
             (c.camera_height_m, c.reference_height_m, c.prior_height_m) = (0.0, 0.0, h);
+            return Some(("calibrate.prior_height_m", "--prior-height"));
         }
+        None
     }
 }
 
@@ -333,35 +338,49 @@ fn config_cmd(a: ConfigArgs) -> i32 {
 }
 
 /// Builds the configuration from the file and the command line
-/// (`snapshot`: the path of `--snapshot` or `--out`).
-fn resolve_config(a: &RunArgs, snapshot: Option<&PathBuf>) -> Result<Config, ConfigError> {
+/// (`snapshot`: the path given with `--snapshot` or `--out`, and which).
+/// An error in a value the command line set names the option, not the
+/// config key it lands in.
+fn resolve_config(a: &RunArgs, snapshot: Option<(&str, &PathBuf)>) -> Result<Config, ConfigError> {
     let mut cfg = match &a.config {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
+    // (config key, option) for each value the command line set.
+    let mut from_options: Vec<(&str, &str)> = Vec::new();
     if let Some(s) = &a.source {
         cfg.source.uri = s.clone();
+        from_options.push(("source.uri", "--source"));
     }
     if !a.reports.is_empty() {
         cfg.report.sinks = a.reports.clone();
+        from_options.push(("report.sinks", "--report"));
     }
     if let Some(f) = a.format {
         cfg.report.format = f;
     }
     if let Some(s) = &a.state {
         cfg.run.state = s.display().to_string();
+        from_options.push(("run.state", "--state"));
     }
     if let Some(n) = a.frames {
         cfg.run.frames = n;
     }
     if let Some(w) = &a.weights {
         cfg.classify.weights = w.display().to_string();
+        from_options.push(("classify.weights", "--weights"));
     }
-    if let Some(p) = snapshot {
+    if let Some((option, p)) = snapshot {
         cfg.run.snapshot = p.display().to_string();
+        from_options.push(("run.snapshot", option));
     }
-    a.scale.apply(&mut cfg);
-    cfg.validate()?;
+    from_options.extend(a.scale.apply(&mut cfg));
+    cfg.validate().map_err(|mut e| {
+        if let Some(&(_, option)) = from_options.iter().find(|(key, _)| *key == e.key) {
+            e.key = option.into();
+        }
+        e
+    })?;
     Ok(cfg)
 }
 
@@ -370,15 +389,7 @@ fn resolve_config(a: &RunArgs, snapshot: Option<&PathBuf>) -> Result<Config, Con
 /// snapshot path given on the command line and the option that gave it.
 fn run_cmd(a: RunArgs, snapshot: Option<(&str, PathBuf)>, until_confident: bool) -> i32 {
     stature::logger::init(a.verbosity.level());
-    // Checked here too so that the message names the option the user
-    // typed, not the config key `run.snapshot` it lands in.
-    if let Some((option, p)) = &snapshot {
-        if let Err(e) = stature::snapshot::check_path(p) {
-            log::error!("{}", ConfigError::invalid(option, p.display(), e));
-            return exit::BAD_INPUT;
-        }
-    }
-    let cfg = match resolve_config(&a, snapshot.as_ref().map(|(_, p)| p)) {
+    let cfg = match resolve_config(&a, snapshot.as_ref().map(|(o, p)| (*o, p))) {
         Ok(c) => c,
         Err(e) => {
             log::error!("{e}");
@@ -461,17 +472,17 @@ fn run_source(
             }
         }
     }
+    // Validated already; this cannot fail.
+    let specs = match cfg.report.sink_specs() {
+        Ok(s) => s,
+        Err(e) => {
+            log::error!("{e}");
+            return exit::BAD_INPUT;
+        }
+    };
     let mut sinks = Vec::new();
-    for spec in &cfg.report.sinks {
-        // Validated already; parse cannot fail here.
-        let spec = match sink::SinkSpec::parse(spec) {
-            Ok(s) => s,
-            Err(e) => {
-                log::error!("report sink `{spec}`: {e}");
-                return exit::BAD_INPUT;
-            }
-        };
-        match sink::Sink::open_with(&spec, &cfg.report.mqtt) {
+    for spec in &specs {
+        match sink::Sink::open_with(spec, &cfg.report.mqtt) {
             Ok(s) => sinks.push(s),
             Err(e) => {
                 log::error!("cannot open report sink: {e}");

@@ -198,7 +198,8 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "0.01".into(),
             ],
             2,
-            "0 (unset) or a value in 0.5..=100",
+            // Named by the option typed, not the config key it sets.
+            "option `--camera-height` = 0.01: expected 0 (unset) or a value in 0.5..=100",
         ),
         (
             vec!["--config".into(), syntax.display().to_string()],
@@ -233,7 +234,7 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "tcp:1.2.3.4:5".into(),
             ],
             2,
-            "report.sinks",
+            "option `--report` = tcp:1.2.3.4:5: unknown sink `tcp:`",
         ),
         (
             vec![
@@ -304,7 +305,8 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             "= mqtt:127.0.0.1:2: same MQTT client id `stature-",
         ),
         // A bad sink is named once, with one reason (before: "expected
-        // `udp:host`: expected udp:HOST:PORT").
+        // `udp:host`: expected udp:HOST:PORT"), and by the option that
+        // gave it (before: the config key `report.sinks`).
         (
             vec![
                 "--source".into(),
@@ -313,7 +315,7 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "udp:host".into(),
             ],
             2,
-            "config key `report.sinks` = udp:host: expected udp:HOST:PORT\n",
+            "option `--report` = udp:host: expected udp:HOST:PORT\n",
         ),
         (
             vec![
