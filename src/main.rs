@@ -409,13 +409,23 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
     // Says what is awaited (and, for tests, that the handlers are in place).
     log::info!("opening source {}", cfg.source.uri);
     match source::open_stoppable(&cfg.source.uri, Some(stop.clone())) {
-        Ok(mut s) => run_source(
-            cfg,
-            s.as_mut(),
-            &stop,
-            &mut (None, Vec::new()),
-            until_confident,
-        ),
+        Ok(mut s) => {
+            // A file or a simulated clip shows how far the run is.
+            let total = match (s.length(), cfg.run.frames) {
+                (Some(n), 0) => Some(n),
+                (Some(n), cap) => Some(n.min(cap)),
+                (None, _) => None,
+            };
+            let mut shown;
+            let src: &mut dyn source::FrameSource = match total {
+                Some(total) if total > 0 => {
+                    shown = Progress::new(s.as_mut(), total, ProgressStyle::Log);
+                    &mut shown
+                }
+                _ => s.as_mut(),
+            };
+            run_source(cfg, src, &stop, &mut (None, Vec::new()), until_confident)
+        }
         Err(source::SourceError::Stopped) => {
             log::info!("stopped by a signal before the source had sent its first frame");
             exit::OK
@@ -581,15 +591,11 @@ fn demo(a: DemoArgs) -> i32 {
         "stature demo: running the pipeline on {} ({} frames); records go to stdout",
         cfg.source.uri, total
     );
-    let mut progress = Progress {
-        inner: sim,
-        total,
-        done: 0,
-    };
+    let mut sim = sim;
+    let mut progress = Progress::new(&mut sim, total, ProgressStyle::Demo);
     let mut outcome = (None, Vec::new());
     let stop = stop_on_signals();
     let code = run_source(&cfg, &mut progress, &stop, &mut outcome, false);
-    let sim = progress.inner;
     let cast = sim.cast();
     // Each final height is matched to the person whose true foot is nearest
     // the track's last foot point in its last frame.
@@ -639,14 +645,67 @@ fn progress(what: &str, done: u64, total: u64, step: u64) {
     }
 }
 
-/// Wraps the demo's source to show progress on stderr.
-struct Progress {
-    inner: stature::source::sim::SimSource,
-    total: u64,
-    done: u64,
+/// How [`Progress`] shows itself.
+#[derive(Clone, Copy, PartialEq)]
+enum ProgressStyle {
+    /// `stature demo`: [`progress`] every 25 frames.
+    Demo,
+    /// `stature run` on a file: an info log line at every tenth of the
+    /// way, at most one a second, so short runs stay quiet.
+    Log,
 }
 
-impl source::FrameSource for Progress {
+/// Wraps a source of known length to show how far the run is.
+struct Progress<'a> {
+    inner: &'a mut dyn source::FrameSource,
+    total: u64,
+    done: u64,
+    style: ProgressStyle,
+    started: std::time::Instant,
+    last_line: std::time::Instant,
+}
+
+impl<'a> Progress<'a> {
+    fn new(inner: &'a mut dyn source::FrameSource, total: u64, style: ProgressStyle) -> Self {
+        let now = std::time::Instant::now();
+        Progress {
+            inner,
+            total,
+            done: 0,
+            style,
+            started: now,
+            last_line: now,
+        }
+    }
+
+    fn show(&mut self) {
+        match self.style {
+            ProgressStyle::Demo if self.done % 25 == 0 || self.done == self.total => {
+                progress("stature demo", self.done, self.total, 25)
+            }
+            ProgressStyle::Log => {
+                let tenth = |n: u64| n * 10 / self.total.max(1);
+                let now = std::time::Instant::now();
+                if tenth(self.done) != tenth(self.done - 1)
+                    && self.done < self.total
+                    && now.duration_since(self.last_line).as_secs_f64() >= 1.0
+                {
+                    self.last_line = now;
+                    let fps = self.done as f64 / now.duration_since(self.started).as_secs_f64();
+                    log::info!(
+                        "frame {} of {} ({} %), {fps:.1} frames/s",
+                        self.done,
+                        self.total,
+                        self.done * 100 / self.total.max(1)
+                    );
+                }
+            }
+            ProgressStyle::Demo => {}
+        }
+    }
+}
+
+impl source::FrameSource for Progress<'_> {
     fn info(&self) -> &source::SourceInfo {
         self.inner.info()
     }
@@ -657,14 +716,15 @@ impl source::FrameSource for Progress {
         let r = self.inner.next_frame(frame);
         if let Ok(source::Next::Frame) = r {
             self.done += 1;
-            if self.done % 25 == 0 || self.done == self.total {
-                progress("stature demo", self.done, self.total, 25);
-            }
+            self.show();
         }
         r
     }
     fn state(&self) -> source::SourceState {
         self.inner.state()
+    }
+    fn length(&self) -> Option<u64> {
+        Some(self.total)
     }
 }
 

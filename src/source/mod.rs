@@ -147,6 +147,11 @@ pub trait FrameSource {
     fn state(&self) -> SourceState {
         SourceState::Streaming
     }
+    /// Frames in the whole stream, when known before it is read (a Y4M
+    /// file, a simulated clip); `None` for a camera or a pipe.
+    fn length(&self) -> Option<u64> {
+        None
+    }
 }
 
 /// Splits `scheme:rest?k=v&k=v` into its parts.

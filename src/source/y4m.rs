@@ -200,6 +200,10 @@ pub struct Y4mSource {
     offset: u64,
     frames: u64,
     ended: bool,
+    /// Size of the file in bytes (a regular file; `None` for a pipe).
+    file_len: Option<u64>,
+    /// Bytes of the stream header line.
+    header_len: u64,
 }
 
 impl Y4mSource {
@@ -214,8 +218,8 @@ impl Y4mSource {
     /// [`Next::Waiting`] (the caller, seeing its flag, stops). Regular
     /// files never block, so they are read directly.
     pub fn open_stoppable(path: &str, stop: Option<Arc<AtomicBool>>) -> Result<Self, SourceError> {
-        let (reader, name) = if path == "-" {
-            (stoppable(io::stdin(), &stop), "y4m:- (stdin)".into())
+        let (reader, name, file_len) = if path == "-" {
+            (stoppable(io::stdin(), &stop), "y4m:- (stdin)".into(), None)
         } else {
             // Non-blocking, so that opening a FIFO does not wait for its
             // writer (a stop signal could not end that wait); reads block
@@ -236,9 +240,13 @@ impl Y4mSource {
                 what: format!("Y4M file `{path}`"),
                 error,
             })?;
-            (stoppable(f, &stop), format!("y4m:{path}"))
+            let len = f.metadata().ok().filter(|m| m.is_file()).map(|m| m.len());
+            (stoppable(f, &stop), format!("y4m:{path}"), len)
         };
-        let mut source = Self::from_reader_stoppable(reader, name, stop.clone());
+        let mut source = Self::from_reader_stoppable(reader, name, stop.clone()).map(|mut s| {
+            s.file_len = file_len;
+            s
+        });
         if let (Err(SourceError::Io { .. }), Some(true)) =
             (&source, stop.as_ref().map(|s| s.load(Ordering::Relaxed)))
         {
@@ -308,6 +316,8 @@ impl Y4mSource {
             offset: n as u64,
             frames: 0,
             ended: false,
+            file_len: None,
+            header_len: n as u64,
         })
     }
 
@@ -367,6 +377,13 @@ impl FrameSource for Y4mSource {
             }
             other => other,
         }
+    }
+
+    /// From the file's size, taking every frame header to be a bare
+    /// `FRAME` line (frame parameters, rare, make it an overestimate).
+    fn length(&self) -> Option<u64> {
+        let per_frame = self.header.chroma.frame_bytes(self.header.size) as u64 + 6;
+        Some(self.file_len?.saturating_sub(self.header_len) / per_frame)
     }
 }
 
@@ -539,6 +556,30 @@ mod tests {
             let e = source(h.as_bytes().to_vec()).err().expect(h).to_string();
             assert!(e.contains(want), "{h:?}: {e}");
         }
+    }
+
+    #[test]
+    fn a_file_knows_its_length_a_stream_does_not() {
+        let payload = vec![7u8; 4 * 2 + 2 * 2];
+        let bytes = stream("YUV4MPEG2 W4 H2 F25:1 C420\n", &vec![payload; 5]);
+        let path = std::env::temp_dir().join(format!("stature-y4m-len-{}.y4m", std::process::id()));
+        std::fs::write(&path, &bytes).unwrap();
+        let mut s = Y4mSource::open(path.to_str().unwrap()).unwrap();
+        assert_eq!(s.length(), Some(5));
+        let mut f = Frame::new(s.info().size);
+        let mut n = 0;
+        while s.next_frame(&mut f).unwrap() == Next::Frame {
+            n += 1;
+        }
+        assert_eq!(n, 5);
+        // A cut last frame is not counted.
+        std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
+        assert_eq!(
+            Y4mSource::open(path.to_str().unwrap()).unwrap().length(),
+            Some(4)
+        );
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(source(bytes).unwrap().length(), None);
     }
 
     #[test]

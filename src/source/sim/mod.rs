@@ -386,6 +386,10 @@ impl FrameSource for SimSource {
         &self.info
     }
 
+    fn length(&self) -> Option<u64> {
+        Some(self.frames)
+    }
+
     fn next_frame(&mut self, frame: &mut Frame) -> Result<Next, SourceError> {
         if self.next >= self.frames {
             return Ok(Next::End);
