@@ -829,6 +829,8 @@ fn sim_cmd(a: SimArgs) -> i32 {
 
 fn train_cmd(a: TrainArgs) -> i32 {
     use stature::classify::{eval, train};
+    // Training takes minutes: each stage is logged as it starts.
+    stature::logger::init(log::LevelFilter::Info);
     let Some(data_dir) = a.data.clone().or_else(stature::dataset::shared_data_dir) else {
         eprintln!("error: no data folder (give --data DIR)");
         return exit::BAD_INPUT;

@@ -181,6 +181,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
     let margin = ex.layout().margin_q8;
     let person = samples::mit_person_box(margin);
     let files = samples::mit_files(&o.data_dir)?;
+    log::info!("training set: {} MIT CBCL crops", files.len());
     for (i, path) in files.iter().enumerate() {
         let fold = (i % 5) as u8;
         for mirror in [false, true] {
@@ -208,6 +209,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         groups: true,
     };
     let mut boxes = Vec::new();
+    log::info!("training set: PETS frames 0..={PETS_TRAIN_LAST}");
     for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, |f, luma| {
         if f % o.pets_stride != 0 {
             return;
@@ -221,6 +223,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         }
     })?;
     for (k, scene) in SIM_SCENES.iter().enumerate() {
+        log::info!("training set: sim:{scene}, seeds {:?}", o.sim_seeds);
         for &seed in &o.sim_seeds {
             samples::sim::for_sim_frames(
                 scene,
@@ -237,6 +240,9 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         }
     }
     for (k, scene) in SIM_SCENES.iter().enumerate() {
+        if !o.animal_seeds.is_empty() {
+            log::info!("training set: cars and dogs of sim:{scene}");
+        }
         for &seed in &o.animal_seeds {
             samples::sim::for_animal_frames(
                 scene,
@@ -252,6 +258,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         }
     }
     let _ = writeln!(log, "base set: {}", counts(&d));
+    log::info!("base set: {}", counts(&d));
     Ok(d)
 }
 
@@ -438,6 +445,7 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         None => {
             let mut best = (0.0, C_GRID[0]);
             for &c in &C_GRID {
+                log::info!("5-fold cross-validation, C = {c}");
                 let acc = cross_validate(&d, c, kw, o.seed);
                 let _ = writeln!(
                     log,
@@ -453,6 +461,11 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     };
     let _ = writeln!(log, "C = {c}");
     for round in 0..o.mining_rounds {
+        log::info!(
+            "hard-negative mining, round {} of {}",
+            round + 1,
+            o.mining_rounds
+        );
         let all: Vec<usize> = (0..d.len()).collect();
         let m = solve(&d, &all, c, kw, o.seed);
         let _ = writeln!(
@@ -470,6 +483,7 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     }
     let _ = writeln!(log, "final set: {}", counts(&d));
     let (layout, d) = if o.select < 1.0 {
+        log::info!("block selection: keep {} of the blocks", o.select);
         let all: Vec<usize> = (0..d.len()).collect();
         let full = solve(&d, &all, c, kw, o.seed);
         let (layout, cols) = select_blocks(l, &full.w, o.select);
@@ -487,6 +501,7 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         (l.clone(), d)
     };
     if !o.skip_final_cv {
+        log::info!("5-fold cross-validation of the final set");
         let cv = cross_validate(&d, c, kw, o.seed);
         let _ = writeln!(
             log,
@@ -494,6 +509,7 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
             cv * 100.0
         );
     }
+    log::info!("final training");
     let all: Vec<usize> = (0..d.len()).collect();
     let m = solve(&d, &all, c, kw, o.seed);
     let model = Model::quantise(layout, &m.w, m.b);
@@ -510,6 +526,7 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     );
     let _ = writeln!(log, "training time {:.1} s", t0.elapsed().as_secs_f64());
     if o.eval {
+        log::info!("held-out evaluation");
         let mut ev = evaluate_pets(&o.data_dir, &model, o.seed)?;
         ev.rows.extend(evaluate_sim(&model, o.seed)?.rows);
         let _ = writeln!(
