@@ -169,14 +169,14 @@ pub fn query_pairs(query: &str) -> impl Iterator<Item = (&str, &str)> {
         .map(|p| p.split_once('=').unwrap_or((p, "")))
 }
 
-/// A source URI split by scheme, its parts checked ([`parse`]).
+/// A source URI split by scheme, its parts parsed ([`parse`]).
 enum Spec<'a> {
     /// `y4m:PATH` (`-` for standard input).
     Y4m(&'a str),
     /// `v4l2:DEVICE?QUERY`.
-    V4l2(&'a str, &'a str),
+    V4l2(v4l2::V4l2Spec),
     /// `sim:SCENE?QUERY`.
-    Sim(&'a str, &'a str),
+    Sim(&'static sim::scene::SceneSpec, sim::SimOptions),
 }
 
 /// Splits `uri` by scheme and checks what can be checked without opening
@@ -190,11 +190,11 @@ fn parse(uri: &str) -> Result<Spec<'_>, SourceError> {
         }
         "y4m" if query.is_empty() => Ok(Spec::Y4m(path)),
         "y4m" => Err(SourceError::Spec(format!("`{uri}`: y4m takes no options"))),
-        "v4l2" => v4l2::V4l2Spec::parse(path, query).map(|_| Spec::V4l2(path, query)),
-        "sim" => {
-            sim::scene_named(path)?;
-            sim::SimOptions::parse(query).map(|_| Spec::Sim(path, query))
-        }
+        "v4l2" => v4l2::V4l2Spec::parse(path, query).map(Spec::V4l2),
+        "sim" => Ok(Spec::Sim(
+            sim::scene_named(path)?,
+            sim::SimOptions::parse(query)?,
+        )),
         _ => Err(SourceError::Spec(format!(
             "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
         ))),
@@ -223,7 +223,7 @@ pub fn open_stoppable(
 ) -> Result<Box<dyn FrameSource + Send>, SourceError> {
     Ok(match parse(uri)? {
         Spec::Y4m(path) => Box::new(y4m::Y4mSource::open_stoppable(path, stop)?),
-        Spec::V4l2(path, query) => Box::new(v4l2::V4l2Source::open(path, query)?),
-        Spec::Sim(name, query) => Box::new(sim::SimSource::open(name, query)?),
+        Spec::V4l2(spec) => Box::new(v4l2::V4l2Source::from_spec(spec)?),
+        Spec::Sim(scene, opts) => Box::new(sim::SimSource::new(scene, &opts)),
     })
 }

@@ -94,7 +94,11 @@ pub struct V4l2Source {
 impl V4l2Source {
     /// Always refuses: this build has no V4L2 support.
     pub fn open(path: &str, query: &str) -> Result<Self, SourceError> {
-        V4l2Spec::parse(path, query)?;
+        Self::from_spec(V4l2Spec::parse(path, query)?)
+    }
+
+    /// Always refuses: this build has no V4L2 support.
+    pub fn from_spec(_spec: V4l2Spec) -> Result<Self, SourceError> {
         Err(SourceError::Unsupported(
             "this build has no V4L2 support (built without the `v4l2` feature)",
         ))
@@ -248,7 +252,11 @@ mod device {
     impl V4l2Source {
         /// Opens the device and negotiates the nearest supported mode.
         pub fn open(path: &str, query: &str) -> Result<Self, SourceError> {
-            let spec = V4l2Spec::parse(path, query)?;
+            Self::from_spec(V4l2Spec::parse(path, query)?)
+        }
+
+        /// Opens the device `spec` names in the nearest supported mode.
+        pub fn from_spec(spec: V4l2Spec) -> Result<Self, SourceError> {
             let (open, size, fps, card) =
                 open_device(&spec.path, &spec, None).map_err(|error| SourceError::Open {
                     what: format!("V4L2 device `{}`", spec.path),
