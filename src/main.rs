@@ -548,14 +548,15 @@ fn run_source(
             );
         }
     }
+    // Losses at single sinks were told above, per sink; this line counts
+    // records, so it does not add them up across sinks.
+    let load = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);
     log::info!(
-        "{} frames, stopped by {:?}, {} records delivered, {} dropped",
+        "{} frames, stopped by {:?}, {} records delivered (to at least one sink), {} dropped with the queue full",
         summary.frames,
         summary.stopped_by,
-        counters
-            .delivered
-            .load(std::sync::atomic::Ordering::Relaxed),
-        counters.dropped()
+        load(&counters.delivered),
+        load(&counters.dropped_queue),
     );
     match summary.error {
         Some(e) => {
