@@ -685,12 +685,9 @@ impl<'a> Progress<'a> {
                 progress("stature demo", self.done, self.total, 25)
             }
             ProgressStyle::Log => {
-                let tenth = |n: u64| n * 10 / self.total.max(1);
                 let now = std::time::Instant::now();
-                if tenth(self.done) != tenth(self.done - 1)
-                    && self.done < self.total
-                    && now.duration_since(self.last_line).as_secs_f64() >= 1.0
-                {
+                let quiet_for = now.duration_since(self.last_line).as_secs_f64();
+                if progress_line_due(self.done, self.total, quiet_for) {
                     self.last_line = now;
                     let fps = self.done as f64 / now.duration_since(self.started).as_secs_f64();
                     log::info!(
@@ -704,6 +701,14 @@ impl<'a> Progress<'a> {
             ProgressStyle::Demo => {}
         }
     }
+}
+
+/// Whether `stature run` logs its progress after frame `done` of `total`:
+/// at each tenth of the way but the end (the run's closing line says
+/// that), and only if the last line is `quiet_for` ≥ 1 s old.
+fn progress_line_due(done: u64, total: u64, quiet_for: f64) -> bool {
+    let tenth = |n: u64| n * 10 / total.max(1);
+    done > 0 && done < total && tenth(done) != tenth(done - 1) && quiet_for >= 1.0
 }
 
 impl source::FrameSource for Progress<'_> {
@@ -973,4 +978,26 @@ fn train_options(
         o.kind_weights.set(w).map_err(|e| format!("--weight {e}"))?;
     }
     Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::progress_line_due;
+
+    #[test]
+    fn progress_is_logged_at_each_tenth_at_most_once_a_second() {
+        let due = |total: u64, quiet_for: f64| -> Vec<u64> {
+            (1..=total)
+                .filter(|&d| progress_line_due(d, total, quiet_for))
+                .collect()
+        };
+        assert_eq!(due(100, 5.0), [10, 20, 30, 40, 50, 60, 70, 80, 90]);
+        // 795 frames (the PETS clip): the first frame of each tenth.
+        assert_eq!(due(795, 5.0), [80, 159, 239, 318, 398, 477, 557, 636, 716]);
+        // Fewer frames than tenths: a line a frame, never at the end.
+        assert_eq!(due(3, 5.0), [1, 2]);
+        // A fast run says nothing between its start and its closing line.
+        assert!(due(795, 0.5).is_empty());
+        assert!(!progress_line_due(0, 0, 5.0) && !progress_line_due(1, 1, 5.0));
+    }
 }
