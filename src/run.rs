@@ -172,16 +172,48 @@ impl Pipeline {
                     return c;
                 }
             };
-            match file.load() {
-                Ok(Some(saved)) => {
+            let (w, h) = (info.size.width, info.size.height);
+            // Why the file cannot be resumed from, and the suffix it is
+            // renamed aside with.
+            let unusable = match file.load() {
+                Ok(Some(saved)) if (saved.width as usize, saved.height as usize) == (w, h) => {
                     let n = c.resume(&saved);
                     log::info!(
                         "calibration state {}: resumed {n} observations",
                         cfg.run.state
                     );
+                    None
                 }
-                Ok(None) => log::info!("calibration state {}: new file", cfg.run.state),
-                Err(e) => log::warn!("calibration state {}: {e}; starting afresh", cfg.run.state),
+                Ok(Some(saved)) => Some((
+                    format!(
+                        "it is for {}x{} frames, not {w}x{h}",
+                        saved.width, saved.height
+                    ),
+                    format!("{}x{}", saved.width, saved.height),
+                )),
+                Ok(None) => {
+                    log::info!("calibration state {}: new file", cfg.run.state);
+                    None
+                }
+                Err(e) => Some((e.to_string(), "corrupt".to_string())),
+            };
+            if let Some((why, suffix)) = unusable {
+                match file.set_aside(&suffix) {
+                    Ok(aside) => log::warn!(
+                        "calibration state {}: {why}; kept as {} and starting afresh",
+                        cfg.run.state,
+                        aside.display()
+                    ),
+                    // Rather than overwrite what could not be moved: no state.
+                    Err(e) => {
+                        log::warn!(
+                            "calibration state {}: {why}, and it cannot be moved aside ({e}); \
+                             running without a state file",
+                            cfg.run.state
+                        );
+                        return c;
+                    }
+                }
             }
             c.state = Some(file);
         }

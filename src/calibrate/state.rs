@@ -2,7 +2,8 @@
 //! written atomically (temporary file in the same directory, `fsync`,
 //! rename, then `fsync` of the directory) so that a power cut leaves either
 //! the old or the new file, never a torn one. A state file that cannot be
-//! read or parsed is reported and ignored: calibration starts afresh.
+//! read or parsed, or that is for another frame size, is reported and
+//! renamed aside ([`StateFile::set_aside`]): calibration starts afresh.
 //!
 //! Writing serialises into a buffer allocated once, so the periodic writes
 //! the loop makes do not allocate (paths shorter than a few hundred bytes
@@ -141,6 +142,33 @@ impl StateFile {
         })?;
         let _ = std::fs::remove_file(&file.tmp);
         Ok(file)
+    }
+
+    /// Moves a file that cannot be resumed from out of the way, so that the
+    /// run's first write does not destroy it (a mistyped `--state` may name
+    /// someone's config or video; a state of another frame size is still
+    /// good for that size): renamed to `PATH.SUFFIX`, or `PATH.SUFFIX.N`
+    /// (N = 1..=99) when that exists. Returns the new path.
+    pub fn set_aside(&self, suffix: &str) -> std::io::Result<PathBuf> {
+        for n in 0..100 {
+            let mut aside = self.path.as_os_str().to_owned();
+            aside.push(".");
+            aside.push(suffix);
+            if n > 0 {
+                aside.push(format!(".{n}"));
+            }
+            let aside = PathBuf::from(aside);
+            // (Not atomic against another process creating the name in
+            // between; the state directory is the service's own.)
+            if std::fs::symlink_metadata(&aside).is_err() {
+                std::fs::rename(&self.path, &aside)?;
+                return Ok(aside);
+            }
+        }
+        Err(std::io::Error::other(format!(
+            "{}.{suffix} .. .{suffix}.99 all exist",
+            self.path.display()
+        )))
     }
 
     /// The file's path.

@@ -666,6 +666,61 @@ fn a_state_path_that_is_a_link_updates_the_linked_file() {
     assert!(!dir.join("persist/cam.state.tmp").exists());
 }
 
+/// A `--state` file that cannot be resumed from is renamed aside, never
+/// overwritten: a mistyped path may name a config file, and a state of
+/// another frame size is still good for that size.
+#[test]
+fn a_state_file_that_cannot_be_resumed_from_is_kept_aside() {
+    let dir = common::fresh_dir("cli-a_state_file_that_cannot_be_resumed_from_is_kept_aside");
+    let clip = write_clip(&dir, "s.y4m", 3);
+    let state = dir.join("cam.toml");
+    let config = "[report]\nsinks = [\"stdout\"]\n";
+    std::fs::write(&state, config).unwrap();
+    let state_arg = state.to_str().unwrap();
+    let args = [
+        "run",
+        "--source",
+        &format!("y4m:{}", clip.display()),
+        "--state",
+        state_arg,
+    ];
+    let out = run(&args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let aside = dir.join("cam.toml.corrupt");
+    assert!(
+        err.contains("corrupt state file") && err.contains("kept as"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&aside).unwrap(),
+        config,
+        "kept whole"
+    );
+    let written = std::fs::read_to_string(&state).unwrap();
+    assert!(written.contains("\"width\":64"), "a new state: {written}");
+    // Again: the first one set aside stays, the second gets a number.
+    std::fs::write(&state, "not json").unwrap();
+    let out = run(&args);
+    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(std::fs::read_to_string(&aside).unwrap(), config);
+    assert_eq!(
+        std::fs::read_to_string(dir.join("cam.toml.corrupt.1")).unwrap(),
+        "not json"
+    );
+    // A valid state of another frame size is kept under that size.
+    let other = written.replace("\"width\":64", "\"width\":640");
+    std::fs::write(&state, &other).unwrap();
+    let out = run(&args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("it is for 640x48 frames, not 64x48"), "{err}");
+    assert_eq!(
+        std::fs::read_to_string(dir.join("cam.toml.640x48")).unwrap(),
+        other
+    );
+}
+
 #[test]
 fn unwritable_snapshot_path_is_exit_3_before_the_run_starts() {
     let dir = common::fresh_dir("cli-unwritable_snapshot_path_is_exit_3_before_the_run_starts");
