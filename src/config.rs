@@ -208,6 +208,10 @@ impl ReportConfig {
             .collect();
         crate::report::mqtt::check_client_ids(&mqtt_sinks, &self.mqtt)
             .map_err(|(s, e)| ConfigError::invalid("report.sinks", s, e))?;
+        for (s, m) in &mqtt_sinks {
+            crate::report::mqtt::check_tls(m, &self.mqtt)
+                .map_err(|e| ConfigError::invalid("report.sinks", s, e))?;
+        }
         Ok(specs)
     }
 }

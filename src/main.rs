@@ -5,7 +5,7 @@ use stature::config::{Config, ConfigError, Format};
 use stature::report::{self, sink, Reporter};
 use stature::{exit, run, source};
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -523,7 +523,28 @@ fn run_source(
         summary.calibration.take(),
         core::mem::take(&mut summary.heights),
     );
+    // The sinks may still hold records (MQTT waits up to its
+    // shutdown_timeout_s for an absent broker). The vision side is done and
+    // the state and snapshot are written: a signal now ends the wait.
+    stop.store(false, Ordering::Relaxed);
     reporter.finish(Duration::from_secs(5));
+    let waiting = std::time::Instant::now();
+    let mut told = false;
+    while !io.is_finished() {
+        if stop.load(Ordering::Relaxed) {
+            log::warn!(
+                "stopped by a signal while the report sinks still held records: not delivered"
+            );
+            return exit::UNAVAILABLE;
+        }
+        if !told && waiting.elapsed() >= Duration::from_secs(1) {
+            log::info!(
+                "waiting for the report sinks to deliver what they hold (a signal ends the wait)"
+            );
+            told = true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let Ok(tallies) = io.join() else {
         log::error!("the report thread failed");
         return exit::INTERNAL;
@@ -548,15 +569,18 @@ fn run_source(
             );
         }
     }
-    // Losses at single sinks were told above, per sink; this line counts
-    // records, so it does not add them up across sinks.
-    let load = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);
+    // Per sink, what it delivered: an MQTT sink accepts a record before the
+    // broker has it, so only its tally at the end knows.
+    let delivered: Vec<String> = tallies
+        .iter()
+        .map(|t| format!("{} {} of {}", t.name, t.records - t.lost, t.records))
+        .collect();
     log::info!(
-        "{} frames, stopped by {:?}, {} records delivered (to at least one sink), {} dropped with the queue full",
+        "{} frames, stopped by {:?}; records delivered: {}; {} dropped with the queue full",
         summary.frames,
         summary.stopped_by,
-        load(&counters.delivered),
-        load(&counters.dropped_queue),
+        delivered.join(", "),
+        counters.dropped_queue.load(Ordering::Relaxed),
     );
     match summary.error {
         Some(e) => {

@@ -26,9 +26,8 @@ pub struct Counters {
     /// Records dropped because the queue was full.
     pub dropped_queue: AtomicU64,
     /// Record deliveries that failed at a sink (one per sink per record).
+    /// What each sink delivered in the end is its [`SinkTally`].
     pub dropped_sink: AtomicU64,
-    /// Records written to at least one sink.
-    pub delivered: AtomicU64,
 }
 
 impl Counters {
@@ -140,10 +139,10 @@ impl Reporter {
 }
 
 /// What one sink did with the run's records, known when the I/O thread ends.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SinkTally {
-    /// The sink's kind (`stdout`, `file`, `udp`, `serial`, `mqtt`).
-    pub name: &'static str,
+    /// The sink as logs name it ([`Sink::label`]: `file:PATH`, ...).
+    pub name: String,
     /// Records handed to it.
     pub records: u64,
     /// Of those, records it did not deliver (failed writes, and records
@@ -181,6 +180,8 @@ pub fn spawn_io(
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
+            // Made once here: a failing write logs it without allocating.
+            let labels: Vec<String> = sinks.iter().map(Sink::label).collect();
             let mut records = 0u64;
             for s in sinks.iter_mut() {
                 s.attach_counters(&counters);
@@ -197,26 +198,16 @@ pub fn spawn_io(
                         return;
                     }
                 };
-                let mut any = false;
-                for (sink, fails) in sinks.iter_mut().zip(failures.iter_mut()) {
-                    match sink.write(&record, bytes, format) {
-                        Ok(()) => any = true,
-                        Err(e) => {
-                            *fails += 1;
-                            counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
-                            // Log the first failure and then every 100th, not each one.
-                            if *fails == 1 || *fails % 100 == 0 {
-                                log::warn!(
-                                    "report: {} sink: {e} ({} records lost there)",
-                                    sink.name(),
-                                    fails
-                                );
-                            }
+                for ((sink, fails), label) in sinks.iter_mut().zip(failures.iter_mut()).zip(&labels)
+                {
+                    if let Err(e) = sink.write(&record, bytes, format) {
+                        *fails += 1;
+                        counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
+                        // Log the first failure and then every 100th, not each one.
+                        if *fails == 1 || *fails % 100 == 0 {
+                            log::warn!("report sink {label}: {e} ({fails} records lost there)");
                         }
                     }
-                }
-                if any {
-                    counters.delivered.fetch_add(1, Ordering::Relaxed);
                 }
             };
             // Warm up: block on the (still empty) queue until one wait has
@@ -255,16 +246,17 @@ pub fn spawn_io(
                     let _ = s.flush();
                 }
             }
-            for s in sinks.iter_mut() {
+            for (s, label) in sinks.iter_mut().zip(&labels) {
                 if let Err(e) = s.close() {
-                    log::warn!("report: {} sink: final flush failed: {e}", s.name());
+                    log::warn!("report sink {label}: final flush failed: {e}");
                 }
             }
             sinks
                 .iter()
                 .zip(&failures)
-                .map(|(s, &failed)| SinkTally {
-                    name: s.name(),
+                .zip(labels)
+                .map(|((s, &failed), name)| SinkTally {
+                    name,
                     records,
                     lost: (failed + s.lost_after_accepting()).min(records),
                 })

@@ -53,6 +53,13 @@ impl SinkSpec {
         if let ("udp" | "mqtt", Some(after)) = (scheme, rest.strip_prefix("//")) {
             return Err(without_slashes(scheme, after));
         }
+        if matches!(scheme, "udp" | "mqtt") && authority(rest).contains('@') {
+            // Not echoed: the caller shows the value through `redacted`.
+            return Err(match scheme {
+                "udp" => "a UDP destination takes no user or password (expected udp:HOST:PORT)".into(),
+                _ => format!("user names and passwords do not go in the sink (it is shown in process lists and logs): {MQTT_CREDENTIALS}"),
+            });
+        }
         if scheme == "mqtts" {
             // TLS is an option of `mqtt:`, not a scheme of its own.
             let fixed = without_slashes("mqtt", rest.strip_prefix("//").unwrap_or(rest));
@@ -72,6 +79,13 @@ impl SinkSpec {
         // (`file:///abs` is the absolute path, as a URL would have it).
         if let ("file", Some(after)) = (scheme, rest.strip_prefix("//")) {
             if !after.is_empty() && !after.starts_with('/') {
+                if authority(after).contains('@') {
+                    return Err(
+                        "`file://` with a user or password: a report file is a local path, \
+                         write `file:PATH`"
+                            .into(),
+                    );
+                }
                 return Err(format!(
                     "`file://{after}` names `/{after}` at the root of the file system: \
                      write `file:{after}` for a path relative to the working directory, \
@@ -125,16 +139,31 @@ impl SinkSpec {
     }
 }
 
-/// `spec` as it may be shown in a log: a URL-style `user:password@` part
-/// (refused by [`SinkSpec::parse`], but echoed by the error that says so)
-/// becomes `***@`.
+/// Where to point users who put credentials in a sink.
+const MQTT_CREDENTIALS: &str = "set [report.mqtt] username/password in the config file \
+     or the environment variables STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD";
+
+/// The host part of a sink's value after `scheme:` or `scheme://`: up to
+/// the first `/` or `?`.
+fn authority(rest: &str) -> &str {
+    &rest[..rest.find(['/', '?']).unwrap_or(rest.len())]
+}
+
+/// `spec` as it may be shown in a log: a `user:password@` part (refused
+/// by [`SinkSpec::parse`], but echoed by the error that says so) becomes
+/// `***@`, in a URL-style value (`mqtt://u:p@host`, `file://u:p@x`) and in
+/// the host of `udp:` and `mqtt:`. A `file:` path may hold an `@`: it is
+/// shown as it is.
 pub fn redacted(spec: &str) -> std::borrow::Cow<'_, str> {
-    let Some((scheme, rest)) = spec.split_once("://") else {
-        return spec.into();
+    let (scheme, sep, rest) = match spec.split_once("://") {
+        Some((scheme, rest)) => (scheme, "://", rest),
+        None => match spec.split_once(':') {
+            Some((scheme @ ("udp" | "mqtt"), rest)) => (scheme, ":", rest),
+            _ => return spec.into(),
+        },
     };
-    let end = rest.find(['/', '?']).unwrap_or(rest.len());
-    match rest[..end].rfind('@') {
-        Some(at) => format!("{scheme}://***{}", &rest[at..]).into(),
+    match authority(rest).rfind('@') {
+        Some(at) => format!("{scheme}{sep}***{}", &rest[at..]).into(),
         None => spec.into(),
     }
 }
@@ -199,6 +228,8 @@ pub enum Sink {
 /// the I/O thread counts.
 pub struct FileSink {
     file: std::fs::File,
+    /// The path, for logs.
+    path: String,
     /// The last write failed part-way: the file may end in a fragment.
     torn: bool,
 }
@@ -217,6 +248,8 @@ impl FileSink {
 /// not two.
 pub struct SerialSink {
     port: Box<dyn serialport::SerialPort>,
+    /// The device, for logs.
+    path: String,
     /// The last write failed part-way: the line may end in a fragment.
     torn: bool,
 }
@@ -270,11 +303,9 @@ impl Sink {
         Ok(match spec {
             SinkSpec::Stdout => Sink::Stdout(io::stdout()),
             SinkSpec::File(p) => Sink::File(FileSink {
-                file: std::fs::OpenOptions::new()
-                    .create(true)
-                    .append(true)
-                    .open(p)
+                file: open_report_file(p)
                     .map_err(|e| io::Error::new(e.kind(), format!("report file `{p}`: {e}")))?,
+                path: p.clone(),
                 torn: false,
             }),
             SinkSpec::Udp(addr) => {
@@ -309,7 +340,11 @@ impl Sink {
                             format!("serial port `{path}`: {e}"),
                         )
                     })?;
-                Sink::Serial(SerialSink { port, torn: false })
+                Sink::Serial(SerialSink {
+                    port,
+                    path: path.clone(),
+                    torn: false,
+                })
             }
             SinkSpec::Mqtt(m) => {
                 let settings = MqttSettings::resolve(m, mqtt, |k| std::env::var(k).ok());
@@ -408,17 +443,43 @@ impl Sink {
         }
     }
 
-    /// Short name for logs.
-    pub fn name(&self) -> &'static str {
+    /// The sink as logs name it, so that two sinks of a kind can be told
+    /// apart: `stdout`, `file:PATH`, `udp:ADDRESS:PORT`, `serial:PATH`,
+    /// `mqtt:HOST:PORT` (no options, no credentials).
+    pub fn label(&self) -> String {
         match self {
-            Sink::Stdout(_) => "stdout",
-            Sink::File(_) => "file",
-            Sink::Udp(..) => "udp",
-            Sink::Serial(_) => "serial",
+            Sink::Stdout(_) => "stdout".into(),
+            Sink::File(f) => format!("file:{}", f.path),
+            Sink::Udp(_, dest) => format!("udp:{dest}"),
+            Sink::Serial(s) => format!("serial:{}", s.path),
             #[cfg(feature = "mqtt")]
-            Sink::Mqtt(_) => "mqtt",
+            Sink::Mqtt(m) => format!("mqtt:{}", m.broker()),
         }
     }
+}
+
+/// Opens a report file for appending. Non-blocking, so that a FIFO with
+/// no reader is an error now (`ENXIO`) rather than an open that waits
+/// forever and that no signal ends; a full FIFO then fails a write (the
+/// record is lost at this sink and counted) instead of stalling the I/O
+/// thread, and with it the end of the run. Regular files ignore the flag.
+fn open_report_file(path: &str) -> io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+        .open(path)
+        .map_err(|e| {
+            if e.raw_os_error() == Some(rustix::io::Errno::NXIO.raw_os_error()) {
+                io::Error::new(
+                    e.kind(),
+                    "it is a FIFO that nothing reads: start the reader first",
+                )
+            } else {
+                e
+            }
+        })
 }
 
 #[cfg(test)]
@@ -561,6 +622,24 @@ mod tests {
         );
         assert_eq!(redacted("mqtt:broker?topic=a@b"), "mqtt:broker?topic=a@b");
         assert_eq!(redacted("udp://h:9/x@y"), "udp://h:9/x@y");
+        // Without `//` too: the host of udp: and mqtt: holds no `@`.
+        for (spec, shown) in [
+            ("mqtt:admin:hunter2@broker.lan", "mqtt:***@broker.lan"),
+            ("mqtt:user@localhost?qos=1", "mqtt:***@localhost?qos=1"),
+            ("udp:u:s3cret@localhost:9000", "udp:***@localhost:9000"),
+            ("file://u:s3cret@x", "file://***@x"),
+            ("file:/var/log/a@b.jsonl", "file:/var/log/a@b.jsonl"),
+        ] {
+            assert_eq!(redacted(spec), shown);
+            let e = SinkSpec::parse(spec);
+            if spec.starts_with("file:/var") {
+                assert!(e.is_ok(), "a path may hold an @: {e:?}");
+            } else {
+                let e = e.unwrap_err();
+                assert!(!e.contains("s3cret") && !e.contains("hunter2"), "{e}");
+                assert!(e.contains("user") && e.contains("password"), "{e}");
+            }
+        }
         assert_eq!(
             SinkSpec::parse("mqtts://broker:8883").unwrap_err(),
             "write `mqtt:broker:8883?tls=true` (TLS is an mqtt: option)"
@@ -638,5 +717,41 @@ mod tests {
                 format!("config key `report.sinks` = {bad}: {reason}")
             );
         }
+    }
+
+    #[test]
+    fn a_fifo_nothing_reads_is_refused_at_open_and_one_that_is_read_works() {
+        let dir = std::env::temp_dir().join(format!("stature-sink-fifo-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("records");
+        rustix::fs::mknodat(
+            rustix::fs::CWD,
+            &fifo,
+            rustix::fs::FileType::Fifo,
+            rustix::fs::Mode::from_raw_mode(0o600),
+            0,
+        )
+        .unwrap();
+        let path = fifo.to_str().unwrap().to_string();
+        // Before: the open waited for a reader, and no signal ended it.
+        let e = Sink::open(&SinkSpec::File(path.clone())).err().unwrap();
+        assert!(e.to_string().contains("a FIFO that nothing reads"), "{e}");
+        let reader = std::thread::spawn({
+            let fifo = fifo.clone();
+            move || std::fs::read_to_string(fifo).unwrap()
+        });
+        // The reader's open completes once a writer is there: retry until then.
+        let mut sink = loop {
+            match Sink::open(&SinkSpec::File(path.clone())) {
+                Ok(s) => break s,
+                Err(_) => std::thread::sleep(std::time::Duration::from_millis(5)),
+            }
+        };
+        assert_eq!(sink.label(), format!("file:{path}"));
+        sink.write_record(b"{\"type\":\"bye\"}\n").unwrap();
+        drop(sink);
+        assert_eq!(reader.join().unwrap(), "{\"type\":\"bye\"}\n");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -32,12 +32,12 @@ fn report_file_on_a_full_disk_drops_with_counts_and_the_run_goes_on() {
     // nothing: exit 3, the sink named.
     assert_eq!(out.status.code(), Some(3), "{stderr}");
     assert!(
-        stderr.contains("report sink file: none of the run's"),
+        stderr.contains("report sink file:/dev/full: none of the run's"),
         "{stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(
-        stderr.contains("file sink: No space left on device"),
+        stderr.contains("report sink file:/dev/full: No space left on device"),
         "the full disk is reported: {stderr}"
     );
     let records: Vec<serde_json::Value> = out
@@ -52,21 +52,16 @@ fn report_file_on_a_full_disk_drops_with_counts_and_the_run_goes_on() {
     assert_eq!(bye["frames"], 300);
     // Every record reached stdout and none reached the file: the file
     // sink's line counts each lost one (the bye record cannot count its
-    // own loss), the summary counts every record as delivered (stdout got
-    // it) and none lost to a full queue.
-    let lost = format!(
-        "report sink file: none of the run's {} records was delivered",
-        records.len()
-    );
+    // own loss), and the closing line says what each sink delivered.
+    let n = records.len();
+    let lost = format!("report sink file:/dev/full: none of the run's {n} records was delivered");
     assert!(stderr.contains(&lost), "{stderr} (expected {lost})");
     let summary = stderr
         .lines()
         .find(|l| l.contains("records delivered"))
         .unwrap_or_else(|| panic!("no summary line: {stderr}"));
-    let expected = format!(
-        "{} records delivered (to at least one sink), 0 dropped with the queue full",
-        records.len()
-    );
+    let expected =
+        format!("records delivered: file:/dev/full 0 of {n}, stdout {n} of {n}; 0 dropped with the queue full");
     assert!(
         summary.contains(&expected),
         "{summary} (expected {expected})"

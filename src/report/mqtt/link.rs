@@ -124,6 +124,11 @@ fn availability(online: bool) -> (Placement, Vec<u8>) {
 }
 
 impl MqttSink {
+    /// The broker, `HOST:PORT`, for logs.
+    pub fn broker(&self) -> String {
+        self.settings.broker()
+    }
+
     /// Prepares the client and starts the connection thread. Does not wait
     /// for the broker: a camera may boot before it, and records are held
     /// until it answers. Fails only on local problems (an unreadable CA file).

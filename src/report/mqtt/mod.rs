@@ -348,6 +348,20 @@ pub fn check_client_ids<'a>(
     Ok(())
 }
 
+/// Refuses a CA file for a connection without TLS: a plain connection
+/// would ignore it, and whoever gave one meant the link to be encrypted.
+pub fn check_tls(m: &MqttSpec, cfg: &MqttConfig) -> Result<(), String> {
+    let tls = m.query.tls.unwrap_or(cfg.tls);
+    let ca = m.query.ca.as_deref().unwrap_or(&cfg.ca);
+    if ca.is_empty() || tls {
+        return Ok(());
+    }
+    Err(format!(
+        "a CA file (`{ca}`) but TLS is off: add `tls=true` to the sink \
+         (or `tls = true` in [report.mqtt]), or drop the CA"
+    ))
+}
+
 /// Everything a connection needs: the config file, the URI and the
 /// environment merged, defaults filled in.
 #[derive(Clone, PartialEq)]
