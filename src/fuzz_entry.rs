@@ -86,8 +86,11 @@ pub fn calibration_state(data: &[u8]) {
     }
 }
 
+/// A fuzz target: its name (the corpus directory's name) and its check.
+pub type Target = (&'static str, fn(&[u8]));
+
 /// Every check by its fuzz target's name (the corpus directory's name).
-pub const TARGETS: [(&str, fn(&[u8])); 5] = [
+pub const TARGETS: [Target; 5] = [
     ("y4m", y4m),
     ("config", config),
     ("postcard_record", postcard_record),

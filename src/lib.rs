@@ -30,6 +30,8 @@
 //! [`config::Config`] when the [`run::Pipeline`] is built.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
+// The negated float comparisons (`if !(lo < hi)`) are deliberate: they reject NaN as well.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod alloc_count;
 pub mod camera;

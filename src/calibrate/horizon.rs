@@ -253,10 +253,10 @@ pub fn fit_horizon(
     let mut lowest_t = f64::INFINITY;
     groups.each(|s, e| {
         tracks += 1;
-        for i in s..e {
-            if groups.inlier[i] {
+        for (&inlier, a) in groups.inlier[s..e].iter().zip(&anchors[s..e]) {
+            if inlier {
                 used += 1;
-                let f = anchors[i].foot;
+                let f = a.foot;
                 let t = (f[0] - g0.p[0]) * axis[0] + (f[1] - g0.p[1]) * axis[1];
                 lowest_t = lowest_t.min(t);
             }

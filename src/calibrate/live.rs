@@ -235,7 +235,9 @@ impl LiveRun {
 
     /// The object a track's observations mostly were: (kind, id).
     pub fn majority(&self) -> BTreeMap<u32, (Kind, u32)> {
-        let mut counts: BTreeMap<u32, BTreeMap<(u8, u32), (Kind, usize)>> = BTreeMap::new();
+        /// Observations per (kind code, object id): the kind and the count.
+        type Votes = BTreeMap<(u8, u32), (Kind, usize)>;
+        let mut counts: BTreeMap<u32, Votes> = BTreeMap::new();
         for o in &self.observations {
             if let Some(m) = o.truth {
                 let code = match m.kind {

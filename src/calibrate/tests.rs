@@ -174,7 +174,7 @@ fn loitering_person_is_bounded_and_does_not_bias() {
     }
     assert!(c.anchor_count() <= cfg.anchors_per_track);
     // One spot cannot give a horizon: no confident estimate.
-    assert!(c.estimate().map_or(true, |e| e.confidence < 0.3));
+    assert!(c.estimate().is_none_or(|e| e.confidence < 0.3));
 }
 
 #[test]

@@ -428,7 +428,7 @@ mod tests {
                     continue;
                 }
                 let (lo, hi, frac) = orientation_bins(dx, dy);
-                let mut theta = f64::from(dy).atan2(f64::from(dx)).to_degrees();
+                let mut theta = libm::atan2(f64::from(dy), f64::from(dx)).to_degrees();
                 if theta < 0.0 {
                     theta += 180.0;
                 }
@@ -485,7 +485,7 @@ mod tests {
                 let dx = p(x + 2, y + 1) - p(x, y + 1);
                 let dy = p(x + 1, y + 2) - p(x + 1, y);
                 let mag = (dx * dx + dy * dy).sqrt();
-                let mut t = dy.atan2(dx).to_degrees();
+                let mut t = libm::atan2(dy, dx).to_degrees();
                 if t < 0.0 {
                     t += 180.0;
                 }
@@ -555,9 +555,9 @@ mod tests {
     #[test]
     fn square_root_table_rounds_to_nearest() {
         let t = sqrt_map();
-        for v in 0..256usize {
+        for (v, &got) in t.iter().enumerate() {
             let want = (255.0 * v as f64).sqrt().round() as u8;
-            assert_eq!(t[v], want, "v = {v}");
+            assert_eq!(got, want, "v = {v}");
         }
         assert_eq!((t[0], t[1], t[255]), (0, 16, 255));
     }
@@ -578,7 +578,7 @@ mod tests {
                     } else {
                         170.0
                     };
-                    (blob + 20.0 * (x * 0.7 + y * 1.3).sin()) as u8
+                    (blob + 20.0 * libm::sin(x * 0.7 + y * 1.3)) as u8
                 })
                 .collect();
             let mut hog = Hog::new(&l);

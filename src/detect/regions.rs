@@ -55,6 +55,15 @@ pub struct Labeller {
     sorted: Vec<Run>,
     /// Valley depth for splitting, Q8 fraction of the lower peak (0 = off).
     split_q8: u32,
+    /// Scratch for splitting one region.
+    cut: CutScratch,
+    /// The runs of one part of a split region.
+    part: Vec<Run>,
+}
+
+/// Scratch for finding the cut columns of one region.
+#[derive(Debug)]
+struct CutScratch {
     /// Column profile of one region (`width + 1` entries).
     hist: Vec<i32>,
     /// Prefix maxima of the profile.
@@ -63,8 +72,6 @@ pub struct Labeller {
     ctop: Vec<u16>,
     /// Cut columns of one region.
     cuts: Vec<u16>,
-    /// The runs of one part of a split region.
-    part: Vec<Run>,
 }
 
 impl Labeller {
@@ -73,10 +80,12 @@ impl Labeller {
     pub fn new(runs: usize, width: usize) -> Self {
         Labeller {
             split_q8: 0,
-            hist: vec![0; width + 1],
-            pmax: vec![0; width + 1],
-            ctop: vec![0; width + 1],
-            cuts: Vec::with_capacity(width),
+            cut: CutScratch {
+                hist: vec![0; width + 1],
+                pmax: vec![0; width + 1],
+                ctop: vec![0; width + 1],
+                cuts: Vec::with_capacity(width),
+            },
             part: Vec::with_capacity(runs),
             cap: runs,
             runs: Vec::with_capacity(runs),
@@ -266,18 +275,7 @@ impl Labeller {
                 (a.top_sx2 as f64 / (2.0 * f64::from(a.top_n))) as f32,
                 f32::from(y0),
             ];
-            if self.split_q8 > 0
-                && find_cuts(
-                    runs,
-                    bbox,
-                    min_area,
-                    self.split_q8,
-                    &mut self.hist,
-                    &mut self.pmax,
-                    &mut self.ctop,
-                    &mut self.cuts,
-                )
-            {
+            if self.split_q8 > 0 && self.cut.find_cuts(runs, bbox, min_area, self.split_q8) {
                 self.push_parts(begin..end, w, h, min_area, out);
                 continue;
             }
@@ -307,18 +305,19 @@ impl Labeller {
         min_area: u32,
         out: &mut RegionSet,
     ) {
-        for p in 0..=self.cuts.len() {
+        let cuts = &self.cut.cuts;
+        for p in 0..=cuts.len() {
             let lo = if p == 0 {
                 0
             } else {
-                u32::from(self.cuts[p - 1]) + 1
+                u32::from(cuts[p - 1]) + 1
             };
-            let hi = if p == self.cuts.len() {
+            let hi = if p == cuts.len() {
                 u32::MAX
             } else {
-                u32::from(self.cuts[p]).wrapping_sub(1)
+                u32::from(cuts[p]).wrapping_sub(1)
             };
-            if p < self.cuts.len() && self.cuts[p] == 0 {
+            if p < cuts.len() && cuts[p] == 0 {
                 continue;
             }
             self.part.clear();
@@ -342,86 +341,85 @@ impl Labeller {
     }
 }
 
-/// Fills `cuts` with the columns where `runs` (one region, box `b`)
-/// should be cut; whether there is any.
-fn find_cuts(
-    runs: &[Run],
-    b: BBox,
-    min_area: u32,
-    split_q8: u32,
-    hist: &mut [i32],
-    pmax: &mut [u32],
-    ctop: &mut [u16],
-    cuts: &mut Vec<u16>,
-) -> bool {
-    cuts.clear();
-    let (x0, wd, ht) = (usize::from(b.x0), b.width() as usize, b.height());
-    // Two people side by side are at least about as wide as tall / 2.
-    if 2 * wd < ht as usize || wd < 8 {
-        return false;
-    }
-    let hist = &mut hist[..wd + 1];
-    hist.fill(0);
-    for r in runs {
-        hist[usize::from(r.x0) - x0] += 1;
-        hist[usize::from(r.x1) + 1 - x0] -= 1;
-    }
-    let mut acc = 0i32;
-    for v in hist.iter_mut() {
-        acc += *v;
-        *v = acc;
-    }
-    // The top-most pixel of each column (runs are in raster order): at a
-    // stride the torso covers the crotch columns from near the top, while
-    // between two people the top of the region is empty.
-    let ctop = &mut ctop[..wd];
-    ctop.fill(u16::MAX);
-    for r in runs {
-        for t in &mut ctop[usize::from(r.x0) - x0..=usize::from(r.x1) - x0] {
-            if *t == u16::MAX {
-                *t = r.y - b.y0;
+impl CutScratch {
+    /// Fills `cuts` with the columns where `runs` (one region, box `b`)
+    /// should be cut; whether there is any.
+    fn find_cuts(&mut self, runs: &[Run], b: BBox, min_area: u32, split_q8: u32) -> bool {
+        let CutScratch {
+            hist,
+            pmax,
+            ctop,
+            cuts,
+        } = self;
+        cuts.clear();
+        let (x0, wd, ht) = (usize::from(b.x0), b.width() as usize, b.height());
+        // Two people side by side are at least about as wide as tall / 2.
+        if 2 * wd < ht as usize || wd < 8 {
+            return false;
+        }
+        let hist = &mut hist[..wd + 1];
+        hist.fill(0);
+        for r in runs {
+            hist[usize::from(r.x0) - x0] += 1;
+            hist[usize::from(r.x1) + 1 - x0] -= 1;
+        }
+        let mut acc = 0i32;
+        for v in hist.iter_mut() {
+            acc += *v;
+            *v = acc;
+        }
+        // The top-most pixel of each column (runs are in raster order): at a
+        // stride the torso covers the crotch columns from near the top, while
+        // between two people the top of the region is empty.
+        let ctop = &mut ctop[..wd];
+        ctop.fill(u16::MAX);
+        for r in runs {
+            for t in &mut ctop[usize::from(r.x0) - x0..=usize::from(r.x1) - x0] {
+                if *t == u16::MAX {
+                    *t = r.y - b.y0;
+                }
             }
         }
-    }
-    let min_peak = (ht * SPLIT_MIN_PEAK_Q8) >> 8;
-    let min_top = ((ht * SPLIT_EMPTY_TOP_Q8) >> 8).min(u32::from(u16::MAX)) as u16;
-    let mut m = 0u32;
-    for c in 0..wd {
-        m = m.max(hist[c] as u32);
-        pmax[c] = m;
-    }
-    // Right to left: suffix maximum on the fly; a candidate column is
-    // a valley under both sides' peaks; each run of candidates yields
-    // its lowest column.
-    let (mut smax, mut best): (u32, Option<(u32, usize)>) = (0, None);
-    let mut last_cut_area = 0u32;
-    for c in (0..wd).rev() {
-        let v = hist[c] as u32;
-        smax = smax.max(v);
-        let peak = pmax[c].min(smax);
-        let cand = peak >= min_peak && (v << 8) <= split_q8 * peak && ctop[c] >= min_top;
-        if cand {
-            if best.is_none_or(|(bv, _)| v < bv) {
-                best = Some((v, c));
-            }
-        } else if let Some((_, bc)) = best.take() {
-            // The part right of the cut must hold `min_area` pixels.
-            let right: u32 = hist[bc + 1..wd].iter().map(|&h| h as u32).sum();
-            if right - last_cut_area >= min_area {
-                cuts.push((x0 + bc) as u16);
-                last_cut_area = right;
+        let min_peak = (ht * SPLIT_MIN_PEAK_Q8) >> 8;
+        let min_top = ((ht * SPLIT_EMPTY_TOP_Q8) >> 8).min(u32::from(u16::MAX)) as u16;
+        let mut m = 0u32;
+        for c in 0..wd {
+            m = m.max(hist[c] as u32);
+            pmax[c] = m;
+        }
+        // Right to left: suffix maximum on the fly; a candidate column is
+        // a valley under both sides' peaks; each run of candidates yields
+        // its lowest column.
+        let (mut smax, mut best): (u32, Option<(u32, usize)>) = (0, None);
+        let mut last_cut_area = 0u32;
+        for c in (0..wd).rev() {
+            let v = hist[c] as u32;
+            smax = smax.max(v);
+            let peak = pmax[c].min(smax);
+            let cand = peak >= min_peak && (v << 8) <= split_q8 * peak && ctop[c] >= min_top;
+            if cand {
+                if best.is_none_or(|(bv, _)| v < bv) {
+                    best = Some((v, c));
+                }
+            } else if let Some((_, bc)) = best.take() {
+                // The part right of the cut must hold `min_area` pixels.
+                let right: u32 = hist[bc + 1..wd].iter().map(|&h| h as u32).sum();
+                if right - last_cut_area >= min_area {
+                    cuts.push((x0 + bc) as u16);
+                    last_cut_area = right;
+                }
             }
         }
-    }
-    // The leftmost part must hold `min_area` pixels too.
-    if let Some(&c) = cuts.last() {
-        let left: u32 = hist[..usize::from(c) - x0].iter().map(|&h| h as u32).sum();
-        if left < min_area {
-            cuts.pop();
+        // The leftmost part must hold `min_area` pixels too.
+        if let Some(&c) = cuts.last() {
+            let left: u32 = hist[..usize::from(c) - x0].iter().map(|&h| h as u32).sum();
+            if left < min_area {
+                cuts.pop();
+            }
         }
+        cuts.reverse();
+        !cuts.is_empty()
     }
-    cuts.reverse();
-    !cuts.is_empty()
 }
 
 /// Smallest peak of a split region's column profile, Q8 fraction of its height.
@@ -744,7 +742,7 @@ mod tests {
             for x in 0..20 {
                 let body = (2..=6).contains(&x) || (12..=16).contains(&x);
                 let bridge = (16..=18).contains(&y) && (2..=16).contains(&x);
-                r.push(if (body && y >= 1 && y <= 18) || bridge {
+                r.push(if (body && (1..=18).contains(&y)) || bridge {
                     '#'
                 } else {
                     '.'

@@ -67,7 +67,7 @@ fn exact_heights_beat_the_linear_approximation() {
 fn walking_heights(rng: &mut Rng) -> Vec<f64> {
     (0..120)
         .map(|k| {
-            let gait = 0.04 * ((k as f64 * 0.7).sin().abs() - 0.5);
+            let gait = 0.04 * (libm::sin(k as f64 * 0.7).abs() - 0.5);
             let mut h = 1.80 + gait + 0.01 * rng.normal();
             if k % 17 == 5 {
                 h = 1.31 + 0.05 * rng.uniform(); // an occluder cut the legs

@@ -472,7 +472,8 @@ mod tests {
 
     #[test]
     fn reads_420jpeg_with_x_tag() {
-        let payload: Vec<u8> = (0..4 * 2 + 2 * 2 * 1).map(|i| i as u8).collect();
+        // Y 4×2, then Cb and Cr 2×1 each.
+        let payload: Vec<u8> = (0..4 * 2 + 2 * 2).map(|i| i as u8).collect();
         let mut s = source(stream(
             "YUV4MPEG2 W4 H2 F10:1 Ip A0:0 C420jpeg XYSCSS=420JPEG\n",
             &[payload.clone(), payload],

@@ -649,6 +649,9 @@ fn blend(model: &mut Hist, h: &Hist) {
 
 /// Snap to region `r`: box, particles re-centred, colour model blended,
 /// and a head/foot sample unless rejected.
+// The arguments are a track, its region and separate fields of the tracker
+// borrowed beside it; no struct groups them naturally.
+#[allow(clippy::too_many_arguments)]
 fn snap(
     t: &mut Track,
     frame_no: u64,

@@ -42,7 +42,7 @@ const SHARED: &str = "seed=5&frames=400";
 fn shared(name: &'static str, query: &'static str) -> MutexGuard<'static, SimSource> {
     type Cell = OnceLock<Mutex<SimSource>>;
     static OPENED: OnceLock<Mutex<HashMap<(&str, &str), &'static Cell>>> = OnceLock::new();
-    let cell: &'static Cell = *OPENED
+    let cell: &'static Cell = OPENED
         .get_or_init(Default::default)
         .lock()
         .unwrap_or_else(|e| e.into_inner())
