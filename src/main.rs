@@ -490,6 +490,10 @@ fn run_source(
             return exit::BAD_INPUT;
         }
     };
+    if specs.is_empty() {
+        // Allowed (a run for its state file or snapshot), but rarely meant.
+        log::warn!("no report sinks (report.sinks is empty): the run's records go nowhere");
+    }
     let mut sinks = Vec::new();
     for spec in &specs {
         match sink::Sink::open_with(spec, &cfg.report.mqtt) {
@@ -571,10 +575,13 @@ fn run_source(
     }
     // Per sink, what it delivered: an MQTT sink accepts a record before the
     // broker has it, so only its tally at the end knows.
-    let delivered: Vec<String> = tallies
+    let mut delivered: Vec<String> = tallies
         .iter()
         .map(|t| format!("{} {} of {}", t.name, t.records - t.lost, t.records))
         .collect();
+    if delivered.is_empty() {
+        delivered.push("none (no sinks)".into());
+    }
     log::info!(
         "{} frames, stopped by {:?}; records delivered: {}; {} dropped with the queue full",
         summary.frames,
