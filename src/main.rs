@@ -463,6 +463,22 @@ fn run_source(
     until_confident: bool,
 ) -> i32 {
     let info = src.info().clone();
+    // A frame size the board cannot hold is refused now, not by the OOM
+    // killer later (which may pick another process).
+    let need = run::memory_estimate(cfg, info.size);
+    if let Some(free) = run::memory_room() {
+        if need > free {
+            log::error!(
+                "{}x{} frames need about {} MiB for the pipeline; {} MiB of memory is available \
+                 (system or service limit; capture a smaller size)",
+                info.size.width,
+                info.size.height,
+                need >> 20,
+                free >> 20
+            );
+            return exit::UNAVAILABLE;
+        }
+    }
     // The state and snapshot paths are checked before anything else starts.
     if !cfg.run.state.is_empty() {
         let path = std::path::Path::new(&cfg.run.state);
