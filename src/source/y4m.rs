@@ -232,6 +232,15 @@ impl Y4mSource {
                     .open(path)
             }
             .and_then(|f| {
+                // Linux opens a directory for reading and fails only the
+                // first read: a bad stream (exit code 2), not a file that
+                // cannot be opened.
+                if f.metadata()?.is_dir() {
+                    return Err(io::Error::new(
+                        io::ErrorKind::IsADirectory,
+                        "it is a directory",
+                    ));
+                }
                 let flags = rustix::fs::fcntl_getfl(&f)?;
                 rustix::fs::fcntl_setfl(&f, flags - rustix::fs::OFlags::NONBLOCK)?;
                 Ok(f)
@@ -587,5 +596,19 @@ mod tests {
     fn missing_file_is_an_open_error() {
         let e = Y4mSource::open("/nonexistent/clip.y4m").err().unwrap();
         assert_eq!(e.exit_code(), crate::exit::UNAVAILABLE);
+    }
+
+    #[test]
+    fn a_directory_is_an_open_error() {
+        let dir = std::env::temp_dir();
+        let e = Y4mSource::open(dir.to_str().unwrap()).err().unwrap();
+        assert_eq!(e.exit_code(), crate::exit::UNAVAILABLE, "{e}");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "cannot open Y4M file `{}`: it is a directory",
+                dir.display()
+            )
+        );
     }
 }

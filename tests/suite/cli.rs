@@ -164,6 +164,10 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
     .unwrap();
     let syntax = dir.join("syntax.toml");
     std::fs::write(&syntax, "[source\n").unwrap();
+    let dir_open_error = format!(
+        "cannot open Y4M file `{}`: it is a directory",
+        dir.display()
+    );
     let cases: Vec<(Vec<String>, i32, &str)> = vec![
         (
             vec![
@@ -210,6 +214,12 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             vec!["--source".into(), "y4m:/nonexistent/x.y4m".into()],
             3,
             "cannot open Y4M file",
+        ),
+        // Before: opened, then "read error at frame 0: Is a directory", exit 2.
+        (
+            vec!["--source".into(), format!("y4m:{}", dir.display())],
+            3,
+            dir_open_error.as_str(),
         ),
         (
             vec!["--source".into(), format!("y4m:{}", garbage.display())],
