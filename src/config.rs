@@ -20,6 +20,9 @@ pub struct ConfigError {
     pub value: String,
     /// Why it was refused, e.g. `expected a value in 10..=100000`.
     pub reason: String,
+    /// The reason to give instead when a command-line option set the
+    /// value, if it differs (see [`ConfigError::unset_or`]).
+    pub option_reason: Option<String>,
 }
 
 impl ConfigError {
@@ -33,7 +36,29 @@ impl ConfigError {
             key: key.into(),
             value: value.to_string(),
             reason: reason.to_string(),
+            option_reason: None,
         }
+    }
+    /// Builds an error for a key that 0 leaves unset, expecting 0 or
+    /// `expected`. Only the config file writes that 0 (an option is given
+    /// or left out, and the options for such keys refuse 0), so an option
+    /// that set the key is told `expected` alone
+    /// ([`ConfigError::set_by_option`]).
+    pub fn unset_or(key: &str, value: impl fmt::Display, expected: impl fmt::Display) -> Self {
+        ConfigError {
+            option_reason: Some(format!("expected {expected}")),
+            ..Self::new(key, value, format_args!("0 (unset) or {expected}"))
+        }
+    }
+    /// The error for the same value given with the command-line `option`
+    /// instead of in the config file: named by the option the user typed,
+    /// with the reason that applies to it.
+    pub fn set_by_option(mut self, option: &str) -> Self {
+        self.key = option.into();
+        if let Some(reason) = self.option_reason.take() {
+            self.reason = reason;
+        }
+        self
     }
 }
 
@@ -342,6 +367,21 @@ mod tests {
     fn unknown_key_is_named() {
         let e = Config::from_toml("[report]\nqueue_size = 3\n").unwrap_err();
         assert!(e.to_string().contains("queue_size"), "{e}");
+    }
+
+    #[test]
+    fn an_option_is_not_offered_the_files_unset_value() {
+        let e = ConfigError::unset_or("calibrate.camera_height_m", 0.1, "a value in 0.5..=100");
+        assert_eq!(
+            e.to_string(),
+            "config key `calibrate.camera_height_m` = 0.1: expected 0 (unset) or a value in 0.5..=100"
+        );
+        assert_eq!(
+            e.set_by_option("--camera-height").to_string(),
+            "option `--camera-height` = 0.1: expected a value in 0.5..=100"
+        );
+        let e = ConfigError::new("run.state", "x", "a file").set_by_option("--state");
+        assert_eq!(e.to_string(), "option `--state` = x: expected a file");
     }
 
     #[test]

@@ -375,12 +375,12 @@ fn resolve_config(a: &RunArgs, snapshot: Option<(&str, &PathBuf)>) -> Result<Con
         from_options.push(("run.snapshot", option));
     }
     from_options.extend(a.scale.apply(&mut cfg));
-    cfg.validate().map_err(|mut e| {
-        if let Some(&(_, option)) = from_options.iter().find(|(key, _)| *key == e.key) {
-            e.key = option.into();
-        }
-        e
-    })?;
+    if let Err(e) = cfg.validate() {
+        return Err(match from_options.iter().find(|(key, _)| *key == e.key) {
+            Some(&(_, option)) => e.set_by_option(option),
+            None => e,
+        });
+    }
     Ok(cfg)
 }
 

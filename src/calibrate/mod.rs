@@ -134,10 +134,10 @@ impl CalibrateConfig {
             ),
         ] {
             if v != 0.0 && !(lo..=hi).contains(&v) {
-                return Err(ConfigError::new(
+                return Err(ConfigError::unset_or(
                     key,
                     v,
-                    format_args!("0 (unset) or a value in {lo}..={hi}"),
+                    format_args!("a value in {lo}..={hi}"),
                 ));
             }
         }

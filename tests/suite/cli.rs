@@ -162,6 +162,8 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
         "[calibrate]\ncamera_height_m = 3.0\nreference_height_m = 1.8\n",
     )
     .unwrap();
+    let small_camera = dir.join("small-camera.toml");
+    std::fs::write(&small_camera, "[calibrate]\ncamera_height_m = 0.1\n").unwrap();
     let syntax = dir.join("syntax.toml");
     std::fs::write(&syntax, "[source\n").unwrap();
     let dir_open_error = format!(
@@ -202,8 +204,36 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "0.01".into(),
             ],
             2,
-            // Named by the option typed, not the config key it sets.
-            "option `--camera-height` = 0.01: expected 0 (unset) or a value in 0.5..=100",
+            // Named by the option typed, not the config key it sets, and
+            // not offered 0 (unset), which the option refuses (before:
+            // "expected 0 (unset) or a value in 0.5..=100").
+            "option `--camera-height` = 0.01: expected a value in 0.5..=100\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--reference-height".into(),
+                "3".into(),
+            ],
+            2,
+            "option `--reference-height` = 3: expected a value in 0.5..=2.5\n",
+        ),
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--prior-height".into(),
+                "0.2".into(),
+            ],
+            2,
+            "option `--prior-height` = 0.2: expected a value in 0.5..=2.5\n",
+        ),
+        // In the file, 0 is how the key is left unset.
+        (
+            vec!["--config".into(), small_camera.display().to_string()],
+            2,
+            "config key `calibrate.camera_height_m` = 0.1: expected 0 (unset) or a value in 0.5..=100\n",
         ),
         (
             vec!["--config".into(), syntax.display().to_string()],
