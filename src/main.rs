@@ -635,15 +635,25 @@ fn demo(a: DemoArgs) -> i32 {
         0 => sim.frames(),
         n => n.min(sim.frames()),
     };
-    eprintln!(
-        "stature demo: running the pipeline on {} ({} frames); records go to stdout",
-        cfg.source.uri, total
-    );
+    // `-q`: only errors on stderr (and the comparison table, the demo's result).
+    let quiet = a.verbosity.quiet;
+    if !quiet {
+        eprintln!(
+            "stature demo: running the pipeline on {} ({} frames); records go to stdout",
+            cfg.source.uri, total
+        );
+    }
     let mut sim = sim;
-    let mut progress = Progress::new(&mut sim, total, ProgressStyle::Demo);
+    let mut shown;
+    let src: &mut dyn source::FrameSource = if quiet {
+        &mut sim
+    } else {
+        shown = Progress::new(&mut sim, total, ProgressStyle::Demo);
+        &mut shown
+    };
     let mut outcome = (None, Vec::new());
     let stop = stop_on_signals();
-    let code = run_source(&cfg, &mut progress, &stop, &mut outcome, false);
+    let code = run_source(&cfg, src, &stop, &mut outcome, false);
     let cast = sim.cast();
     // Each final height is matched to the person whose true foot is nearest
     // the track's last foot point in its last frame.
@@ -662,19 +672,30 @@ fn demo(a: DemoArgs) -> i32 {
                 .map(|m| m.id),
         })
         .collect();
+    let calibration_missing = calibration_missing(total, sim.frames());
     let table = demo::comparison_table(
         sim.scene_truth(),
         &cast,
         &demo::Estimates {
             calibration: outcome.0.as_ref(),
-            calibration_missing:
-                "too few single-person observations (a stub classifier finds none)",
+            calibration_missing: &calibration_missing,
             heights: &heights,
             heights_missing: "no person track was measured",
         },
     );
     eprint!("{table}");
     code
+}
+
+/// Why the demo has no calibration after `run` of the scene's `scene`
+/// frames (a shortened run may have stopped before enough people had
+/// walked through alone).
+fn calibration_missing(run: u64, scene: u64) -> String {
+    if run < scene {
+        format!("too few single-person observations in {run} frames of {scene}; run more frames")
+    } else {
+        format!("too few single-person observations in the scene's {run} frames")
+    }
 }
 
 /// Shows `done` of `total` frames (called every `step` frames and at the
@@ -1029,7 +1050,20 @@ fn train_options(
 
 #[cfg(test)]
 mod tests {
-    use super::progress_line_due;
+    use super::{calibration_missing, progress_line_due};
+
+    #[test]
+    fn a_short_demo_without_calibration_suggests_more_frames() {
+        let short = calibration_missing(50, 600);
+        assert_eq!(
+            short,
+            "too few single-person observations in 50 frames of 600; run more frames"
+        );
+        let whole = calibration_missing(600, 600);
+        assert!(!whole.contains("run more"), "{whole}");
+        // Before: a stub classifier was blamed, long after the real one came.
+        assert!(!short.contains("stub") && !whole.contains("stub"));
+    }
 
     #[test]
     fn progress_is_logged_at_each_tenth_at_most_once_a_second() {

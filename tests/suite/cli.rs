@@ -925,3 +925,28 @@ fn verbosity_flags_add_debug_and_trace_lines() {
         "-v and -q contradict each other"
     );
 }
+
+#[test]
+fn a_short_quiet_demo_prints_its_table_and_nothing_else() {
+    // Too short for a calibration: the table says why, truthfully (before:
+    // "too few single-person observations (a stub classifier finds none)").
+    let out = run(&["demo", "--frames", "20", "-q"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains(
+            "not estimated (too few single-person observations in 20 frames of 750; run more frames)"
+        ),
+        "{err}"
+    );
+    assert!(!err.contains("stub"), "{err}");
+    // `-q` leaves the banner and the progress out (before: both printed).
+    assert!(!err.contains("stature demo:"), "{err}");
+    assert!(!err.contains("frame 20/20"), "{err}");
+    let out = run(&["demo", "--frames", "20"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("stature demo: running the pipeline") && err.contains("frame 20/20 (100%)"),
+        "{err}"
+    );
+}
