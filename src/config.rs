@@ -270,11 +270,13 @@ impl Config {
         Ok(cfg)
     }
 
-    /// Reads and parses a TOML file.
-    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+    /// Reads and parses a TOML file; `option` is the command-line option
+    /// that named it (`--config`, `--check`), which an unreadable file's
+    /// error names.
+    pub fn load(path: &Path, option: &str) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| {
             ConfigError::new(
-                "--config",
+                option,
                 path.display(),
                 format_args!("a readable TOML file ({e})"),
             )
@@ -382,6 +384,17 @@ mod tests {
         );
         let e = ConfigError::new("run.state", "x", "a file").set_by_option("--state");
         assert_eq!(e.to_string(), "option `--state` = x: expected a file");
+    }
+
+    #[test]
+    fn an_unreadable_file_is_named_by_the_option_that_gave_it() {
+        let e = Config::load(Path::new("/nonexistent.toml"), "--check").unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "option `--check` = /nonexistent.toml: expected a readable TOML file ("
+            ),
+            "{e}"
+        );
     }
 
     #[test]

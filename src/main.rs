@@ -316,15 +316,16 @@ fn main() {
 
 fn config_cmd(a: ConfigArgs) -> i32 {
     if let Some(path) = a.check {
-        return match Config::load(&path) {
+        return match Config::load(&path, "--check") {
             Ok(cfg) => match source::check(&cfg.source.uri) {
                 Ok(()) => {
                     println!("{}: ok", path.display());
                     exit::OK
                 }
+                // A source this build lacks is exit code 3, as `run` says.
                 Err(e) => {
                     eprintln!("error: {}: source.uri: {e}", path.display());
-                    exit::BAD_INPUT
+                    e.exit_code()
                 }
             },
             Err(e) => {
@@ -343,7 +344,7 @@ fn config_cmd(a: ConfigArgs) -> i32 {
 /// config key it lands in.
 fn resolve_config(a: &RunArgs, snapshot: Option<(&str, &PathBuf)>) -> Result<Config, ConfigError> {
     let mut cfg = match &a.config {
-        Some(p) => Config::load(p)?,
+        Some(p) => Config::load(p, "--config")?,
         None => Config::default(),
     };
     // (config key, option) for each value the command line set.

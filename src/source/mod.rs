@@ -202,10 +202,15 @@ fn parse(uri: &str) -> Result<Spec<'_>, SourceError> {
 }
 
 /// Checks a source URI without opening anything (what `stature config
-/// --check` can say before a run). Whether the file or device is there is
-/// only known when [`open`] tries.
+/// --check` can say before a run): also that this build has the source,
+/// a `v4l2:` one only with the `v4l2` feature ([`SourceError::Unsupported`],
+/// as [`open`] says). Whether the file or device is there is only known
+/// when [`open`] tries.
 pub fn check(uri: &str) -> Result<(), SourceError> {
-    parse(uri).map(|_| ())
+    match parse(uri)? {
+        Spec::V4l2(_) if !v4l2::BUILT_IN => Err(SourceError::Unsupported(v4l2::NOT_BUILT_IN)),
+        _ => Ok(()),
+    }
 }
 
 /// Opens a source URI (`y4m:PATH`, `v4l2:/dev/videoN?...`, `sim:SCENE?...`).

@@ -81,6 +81,12 @@ impl V4l2Spec {
     }
 }
 
+/// Whether this build can capture from V4L2 (the cargo feature `v4l2`).
+pub const BUILT_IN: bool = cfg!(feature = "v4l2");
+
+/// Why a `v4l2:` source is refused by a build without V4L2 support.
+pub const NOT_BUILT_IN: &str = "this build has no V4L2 support (built without the `v4l2` feature)";
+
 #[cfg(feature = "v4l2")]
 pub use device::V4l2Source;
 
@@ -99,9 +105,7 @@ impl V4l2Source {
 
     /// Always refuses: this build has no V4L2 support.
     pub fn from_spec(_spec: V4l2Spec) -> Result<Self, SourceError> {
-        Err(SourceError::Unsupported(
-            "this build has no V4L2 support (built without the `v4l2` feature)",
-        ))
+        Err(SourceError::Unsupported(NOT_BUILT_IN))
     }
 }
 
@@ -410,6 +414,21 @@ mod tests {
             let e = V4l2Spec::parse(p, q).unwrap_err().to_string();
             assert!(e.contains(want), "{e}");
         }
+    }
+
+    #[test]
+    fn a_check_says_whether_this_build_has_v4l2() {
+        let checked = crate::source::check("v4l2:/dev/video0?width=640");
+        if BUILT_IN {
+            assert!(checked.is_ok(), "{checked:?}");
+        } else {
+            let e = checked.unwrap_err();
+            assert_eq!(e.exit_code(), crate::exit::UNAVAILABLE, "{e}");
+            assert_eq!(e.to_string(), NOT_BUILT_IN);
+        }
+        // A bad spec is a bad spec either way.
+        let e = crate::source::check("v4l2:/dev/video0?fps=0").unwrap_err();
+        assert_eq!(e.exit_code(), crate::exit::BAD_INPUT, "{e}");
     }
 
     #[test]

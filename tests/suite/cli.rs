@@ -950,3 +950,36 @@ fn a_short_quiet_demo_prints_its_table_and_nothing_else() {
         "{err}"
     );
 }
+
+#[test]
+fn config_check_names_its_option_and_a_camera_this_build_lacks() {
+    let dir = common::fresh_dir("cli-config_check_names_its_option");
+    // Before: "option `--config` = ...", an option not given.
+    let out = run(&["config", "--check", "/nonexistent.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("option `--check` = /nonexistent.toml: expected a readable TOML file"),
+        "{err}"
+    );
+    // Before, a build without V4L2 passed this file and refused it only
+    // once `run` tried to open the camera.
+    let cfg = dir.join("camera.toml");
+    std::fs::write(&cfg, "[source]\nuri = \"v4l2:/dev/video0\"\n").unwrap();
+    let out = run(&["config", "--check", &cfg.display().to_string()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    if cfg!(feature = "v4l2") {
+        assert_eq!(out.status.code(), Some(0), "{err}");
+    } else {
+        // Exit code 3, a feature not built in, as `run` gives.
+        assert_eq!(out.status.code(), Some(3), "{err}");
+        assert!(
+            err.contains("source.uri: this build has no V4L2 support"),
+            "{err}"
+        );
+        let out = run(&["run", "--config", &cfg.display().to_string()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{err}");
+        assert!(err.contains("this build has no V4L2 support"), "{err}");
+    }
+}
