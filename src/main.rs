@@ -600,7 +600,7 @@ fn run_source(
         delivered.push("none (no sinks)".into());
     }
     log::info!(
-        "{} frames, stopped by {:?}; records delivered: {}; {} dropped with the queue full",
+        "{} frames, stopped by {}; records delivered: {}; {} dropped with the queue full",
         summary.frames,
         summary.stopped_by,
         delivered.join(", "),

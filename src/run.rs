@@ -464,6 +464,21 @@ pub enum StopReason {
     Observer,
 }
 
+/// In plain words, for the log ("stopped by end of stream").
+impl core::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            StopReason::EndOfStream => "end of stream",
+            StopReason::FrameLimit => "frame limit",
+            StopReason::Signal => "a signal",
+            StopReason::SourceError => "a source error",
+            // The only observer that stops a run is `stature snapshot`'s,
+            // once the calibration is confident enough to measure.
+            StopReason::Observer => "confidence reached",
+        })
+    }
+}
+
 /// Watches the loop from outside (the installer snapshot): told after every
 /// processed frame and once at the very end, before the pipeline is dropped.
 pub trait Observer {
@@ -703,5 +718,19 @@ mod tests {
         assert_eq!(cgroup_room("1000\n", "2000\n"), Some(0));
         // Whatever this machine has, it reads as something (a Linux CI host).
         assert!(memory_room().is_some_and(|b| b > 0));
+    }
+
+    #[test]
+    fn stop_reasons_read_as_plain_words() {
+        // Before, the log showed the variant names ("stopped by Observer").
+        for (reason, words) in [
+            (StopReason::EndOfStream, "end of stream"),
+            (StopReason::FrameLimit, "frame limit"),
+            (StopReason::Signal, "a signal"),
+            (StopReason::SourceError, "a source error"),
+            (StopReason::Observer, "confidence reached"),
+        ] {
+            assert_eq!(reason.to_string(), words);
+        }
     }
 }
