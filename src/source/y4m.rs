@@ -357,6 +357,21 @@ fn read_line(r: &mut dyn BufRead, line: &mut Vec<u8>) -> io::Result<usize> {
     r.take(MAX_LINE as u64).read_until(b'\n', line)
 }
 
+/// The start of `line` as it can be shown in a message: its first 16
+/// bytes, those other than printable ASCII and spaces as `.`.
+fn shown(line: &[u8]) -> String {
+    line.iter()
+        .take(16)
+        .map(|&b| {
+            if b.is_ascii_graphic() || b == b' ' {
+                b as char
+            } else {
+                '.'
+            }
+        })
+        .collect()
+}
+
 /// Reads exactly `buf.len()` bytes; returns how many arrived before end of stream.
 fn read_full(r: &mut dyn Read, buf: &mut [u8]) -> io::Result<usize> {
     let mut got = 0;
@@ -410,14 +425,24 @@ impl Y4mSource {
             self.ended = true;
             return Ok(Next::End);
         }
+        // The stream ends within a frame header: `FRAME`, part of it, or
+        // it and its tags, without the newline (before, a bare `FRAME`
+        // here was refused as "expected `FRAME` marker, found `FRAME`").
+        let cut_short = self.line.last() != Some(&b'\n')
+            && n < MAX_LINE
+            && (b"FRAME".starts_with(&self.line) || self.line.starts_with(b"FRAME "));
+        if cut_short {
+            self.ended = true;
+            return Err(self.fail(format!(
+                "truncated frame header: the stream ends after `{}` without the newline that ends it",
+                shown(&self.line)
+            )));
+        }
         if !self.line.starts_with(b"FRAME") || !matches!(self.line.get(5), Some(b' ' | b'\n')) {
-            let shown: String = self
-                .line
-                .iter()
-                .take(16)
-                .map(|&b| if b.is_ascii_graphic() { b as char } else { '.' })
-                .collect();
-            return Err(self.fail(format!("expected `FRAME` marker, found `{shown}`")));
+            return Err(self.fail(format!(
+                "expected `FRAME` marker, found `{}`",
+                shown(&self.line)
+            )));
         }
         if self.line.last() != Some(&b'\n') {
             return Err(self.fail("frame header line not terminated".into()));
@@ -546,6 +571,30 @@ mod tests {
             e.contains("expected `FRAME`") && e.contains("JUNKJUNK"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_stream_cut_within_a_frame_header_says_so() {
+        for (tail, shown) in [
+            (&b"FRAME"[..], "`FRAME`"),
+            (b"FRA", "`FRA`"),
+            (b"FRAME Ip", "`FRAME Ip`"),
+        ] {
+            let mut bytes = stream("YUV4MPEG2 W4 H2\n", &[vec![0; 12]]);
+            bytes.extend_from_slice(tail);
+            let mut s = source(bytes).unwrap();
+            let mut f = Frame::new(s.info().size);
+            s.next_frame(&mut f).unwrap();
+            let e = s.next_frame(&mut f).unwrap_err().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "malformed stream at frame 1, byte offset 34: truncated frame header: \
+                     the stream ends after {shown} without the newline that ends it"
+                )
+            );
+            assert_eq!(s.next_frame(&mut f).unwrap(), Next::End);
+        }
     }
 
     #[test]
