@@ -547,12 +547,15 @@ fn run_source(
     // The sinks may still hold records (MQTT waits up to its
     // shutdown_timeout_s for an absent broker). The vision side is done and
     // the state and snapshot are written: a signal now ends the wait.
-    stop.store(false, Ordering::Relaxed);
+    // A signal that came after the loop's last look (while the state or
+    // snapshot was written) is the one that ends this wait.
+    let late_signal =
+        stop.swap(false, Ordering::Relaxed) && summary.stopped_by != run::StopReason::Signal;
     reporter.finish(Duration::from_secs(5));
     let waiting = std::time::Instant::now();
     let mut told = false;
     while !io.is_finished() {
-        if stop.load(Ordering::Relaxed) {
+        if late_signal || stop.load(Ordering::Relaxed) {
             log::warn!(
                 "stopped by a signal while the report sinks still held records: not delivered"
             );

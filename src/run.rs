@@ -195,7 +195,18 @@ impl Pipeline {
                     log::info!("calibration state {}: new file", cfg.run.state);
                     None
                 }
-                Err(e) => Some((e.to_string(), "corrupt".to_string())),
+                Err(e @ crate::calibrate::state::StateError::Corrupt(_)) => {
+                    Some((e.to_string(), "corrupt".to_string()))
+                }
+                // Unreadable (permissions, a failing card) is not corrupt:
+                // the file stays where it is and this run keeps no state.
+                Err(e) => {
+                    log::warn!(
+                        "calibration state {}: cannot read it ({e}); running without a state file",
+                        cfg.run.state
+                    );
+                    return c;
+                }
             };
             if let Some((why, suffix)) = unusable {
                 match file.set_aside(&suffix) {
@@ -474,7 +485,7 @@ impl core::fmt::Display for StopReason {
             StopReason::SourceError => "a source error",
             // The only observer that stops a run is `stature snapshot`'s,
             // once the calibration is confident enough to measure.
-            StopReason::Observer => "confidence reached",
+            StopReason::Observer => "the calibration's confidence",
         })
     }
 }
@@ -532,12 +543,20 @@ pub fn mem_available(text: &str) -> Option<u64> {
     kib.checked_mul(1024)
 }
 
-/// Room left under a cgroup v2 memory limit (`memory.max` minus
-/// `memory.current`, the two files' text); `None` without a limit.
-pub fn cgroup_room(max: &str, current: &str) -> Option<u64> {
+/// Room left under a cgroup v2 memory limit: `memory.max` minus
+/// `memory.current`, not counting the page cache in it (`file` of
+/// `memory.stat`; the kernel reclaims it before it would refuse memory,
+/// and a service restarted after reading a large file holds much of it).
+/// The arguments are the three files' text; `None` without a limit.
+pub fn cgroup_room(max: &str, current: &str, stat: &str) -> Option<u64> {
     let max: u64 = max.trim().parse().ok()?; // "max": no limit
     let current: u64 = current.trim().parse().ok()?;
-    Some(max.saturating_sub(current))
+    let cache: u64 = stat
+        .lines()
+        .find_map(|l| l.strip_prefix("file "))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(0);
+    Some(max.saturating_sub(current.saturating_sub(cache)))
 }
 
 /// The memory this process can still take, in bytes: the system's
@@ -556,7 +575,8 @@ pub fn memory_room() -> Option<u64> {
             let dir = std::path::Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
             let max = std::fs::read_to_string(dir.join("memory.max")).ok()?;
             let current = std::fs::read_to_string(dir.join("memory.current")).ok()?;
-            cgroup_room(&max, &current)
+            let stat = std::fs::read_to_string(dir.join("memory.stat")).unwrap_or_default();
+            cgroup_room(&max, &current, &stat)
         });
     match (system, cgroup) {
         (Some(a), Some(b)) => Some(a.min(b)),
@@ -713,11 +733,18 @@ mod tests {
         assert_eq!(mem_available(text), Some(6_000_000 * 1024));
         assert_eq!(mem_available("MemTotal: 1 kB\n"), None);
         assert_eq!(mem_available("MemAvailable: lots kB\n"), None);
-        assert_eq!(cgroup_room("268435456\n", "100663296\n"), Some(160 << 20));
-        assert_eq!(cgroup_room("max\n", "100663296\n"), None);
-        assert_eq!(cgroup_room("1000\n", "2000\n"), Some(0));
-        // Whatever this machine has, it reads as something (a Linux CI host).
-        assert!(memory_room().is_some_and(|b| b > 0));
+        assert_eq!(
+            cgroup_room("268435456\n", "100663296\n", ""),
+            Some(160 << 20)
+        );
+        // 64 MiB of it page cache: room for that too.
+        let stat = "anon 33554432\nfile 67108864\nkernel 1048576\n";
+        assert_eq!(
+            cgroup_room("268435456\n", "100663296\n", stat),
+            Some(224 << 20)
+        );
+        assert_eq!(cgroup_room("max\n", "100663296\n", ""), None);
+        assert_eq!(cgroup_room("1000\n", "2000\n", ""), Some(0));
     }
 
     #[test]
@@ -728,7 +755,7 @@ mod tests {
             (StopReason::FrameLimit, "frame limit"),
             (StopReason::Signal, "a signal"),
             (StopReason::SourceError, "a source error"),
-            (StopReason::Observer, "confidence reached"),
+            (StopReason::Observer, "the calibration's confidence"),
         ] {
             assert_eq!(reason.to_string(), words);
         }

@@ -20,6 +20,10 @@ use std::path::{Path, PathBuf};
 /// Format version written in the file.
 pub const STATE_VERSION: u32 = 1;
 
+/// The largest file read as a state file: about 110 bytes per anchor, so
+/// room for 150,000 anchors, far more than any configuration keeps.
+pub const MAX_STATE_BYTES: u64 = 16 << 20;
+
 /// A loaded state file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -158,11 +162,18 @@ impl StateFile {
                 aside.push(format!(".{n}"));
             }
             let aside = PathBuf::from(aside);
-            // (Not atomic against another process creating the name in
-            // between; the state directory is the service's own.)
-            if std::fs::symlink_metadata(&aside).is_err() {
-                std::fs::rename(&self.path, &aside)?;
-                return Ok(aside);
+            use rustix::fs::{renameat_with, RenameFlags, CWD};
+            match renameat_with(CWD, &self.path, CWD, &aside, RenameFlags::NOREPLACE) {
+                Ok(()) => return Ok(aside),
+                Err(rustix::io::Errno::EXIST) => continue,
+                // A file system without RENAME_NOREPLACE: look, then rename.
+                Err(rustix::io::Errno::INVAL | rustix::io::Errno::NOSYS) => {
+                    if std::fs::symlink_metadata(&aside).is_err() {
+                        std::fs::rename(&self.path, &aside)?;
+                        return Ok(aside);
+                    }
+                }
+                Err(e) => return Err(e.into()),
             }
         }
         Err(std::io::Error::other(format!(
@@ -176,13 +187,27 @@ impl StateFile {
         &self.path
     }
 
-    /// Reads the file: `Ok(None)` when it does not exist.
+    /// Reads the file: `Ok(None)` when it does not exist. A file larger
+    /// than any state file ([`MAX_STATE_BYTES`]) is not read at all: a
+    /// mistyped path may name a video.
     pub fn load(&self) -> Result<Option<Saved>, StateError> {
-        let text = match std::fs::read(&self.path) {
-            Ok(t) => t,
+        let mut text = Vec::new();
+        match File::open(&self.path) {
+            Ok(f) => {
+                use std::io::Read;
+                f.take(MAX_STATE_BYTES + 1)
+                    .read_to_end(&mut text)
+                    .map_err(StateError::Io)?;
+            }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(StateError::Io(e)),
-        };
+        }
+        if text.len() as u64 > MAX_STATE_BYTES {
+            return Err(StateError::Corrupt(format!(
+                "larger than {} MiB, too large to be a state file",
+                MAX_STATE_BYTES >> 20
+            )));
+        }
         parse_state(&text).map(Some)
     }
 

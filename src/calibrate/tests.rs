@@ -251,3 +251,37 @@ fn state_file_round_trip_and_corrupt_file() {
     ));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A file too large to be a state file is refused unread (a mistyped
+/// `--state` may name a video) and renamed aside, never over an existing
+/// name.
+#[test]
+fn an_oversized_state_file_is_refused_unread_and_set_aside() {
+    let dir = std::env::temp_dir().join(format!("stature-state-big-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("clip.y4m");
+    // Sparse: no 17 MiB written.
+    let f = std::fs::File::create(&path).unwrap();
+    f.set_len(state::MAX_STATE_BYTES + 1).unwrap();
+    drop(f);
+    let file = state::StateFile::new(&path, 0);
+    let e = file.load().unwrap_err();
+    assert!(
+        e.to_string().contains("too large to be a state file"),
+        "{e}"
+    );
+    std::fs::write(dir.join("clip.y4m.corrupt"), "kept").unwrap();
+    let aside = file.set_aside("corrupt").unwrap();
+    assert_eq!(aside, dir.join("clip.y4m.corrupt.1"));
+    assert_eq!(
+        std::fs::read_to_string(dir.join("clip.y4m.corrupt")).unwrap(),
+        "kept"
+    );
+    assert_eq!(
+        std::fs::metadata(&aside).unwrap().len(),
+        state::MAX_STATE_BYTES + 1
+    );
+    assert!(!path.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

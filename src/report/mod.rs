@@ -180,7 +180,8 @@ pub fn spawn_io(
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
-            // Made once here: a failing write logs it without allocating.
+            // Made once here, not per failing write (whose error text may
+            // still allocate: the I/O thread's, never the vision loop's).
             let labels: Vec<String> = sinks.iter().map(Sink::label).collect();
             let mut records = 0u64;
             for s in sinks.iter_mut() {

@@ -113,6 +113,10 @@ impl SinkSpec {
                 if path.is_empty() {
                     return Err("expected serial:/dev/ttyX?baud=N".into());
                 }
+                if path.starts_with("//") {
+                    // A URL habit (the value itself is shown redacted).
+                    return Err("write serial:/dev/ttyX?baud=N, without `//`".into());
+                }
                 if !path.starts_with('/') {
                     return Err(format!(
                         "serial device `{path}` is not an absolute path (expected serial:/dev/ttyX?baud=N)"
@@ -471,7 +475,10 @@ fn open_report_file(path: &str) -> io::Result<std::fs::File> {
         .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
         .open(path)
         .map_err(|e| {
-            if e.raw_os_error() == Some(rustix::io::Errno::NXIO.raw_os_error()) {
+            use std::os::unix::fs::FileTypeExt;
+            let fifo = || std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo());
+            // (ENXIO also comes from a socket or a device with nothing behind it.)
+            if e.raw_os_error() == Some(rustix::io::Errno::NXIO.raw_os_error()) && fifo() {
                 io::Error::new(
                     e.kind(),
                     "it is a FIFO that nothing reads: start the reader first",
@@ -677,6 +684,10 @@ mod tests {
             ),
             ("serial:", "expected serial:/dev/ttyX?baud=N"),
             (
+                "serial://dev/ttyS0",
+                "write serial:/dev/ttyX?baud=N, without `//`",
+            ),
+            (
                 "serial:ttyS0",
                 "serial device `ttyS0` is not an absolute path (expected serial:/dev/ttyX?baud=N)",
             ),
@@ -741,10 +752,13 @@ mod tests {
             let fifo = fifo.clone();
             move || std::fs::read_to_string(fifo).unwrap()
         });
-        // The reader's open completes once a writer is there: retry until then.
+        // The reader's open completes once a writer is there: retry until
+        // then, for at most 10 s.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
         let mut sink = loop {
             match Sink::open(&SinkSpec::File(path.clone())) {
                 Ok(s) => break s,
+                Err(e) if std::time::Instant::now() > deadline => panic!("no reader came: {e}"),
                 Err(_) => std::thread::sleep(std::time::Duration::from_millis(5)),
             }
         };
