@@ -551,11 +551,12 @@ fn run_source(
     // snapshot was written) is the one that ends this wait.
     let late_signal =
         stop.swap(false, Ordering::Relaxed) && summary.stopped_by != run::StopReason::Signal;
-    reporter.finish(Duration::from_secs(5));
+    let give_up = || late_signal || stop.load(Ordering::Relaxed);
+    reporter.finish_unless(Duration::from_secs(5), give_up);
     let waiting = std::time::Instant::now();
     let mut told = false;
     while !io.is_finished() {
-        if late_signal || stop.load(Ordering::Relaxed) {
+        if give_up() {
             log::warn!(
                 "stopped by a signal while the report sinks still held records: not delivered"
             );

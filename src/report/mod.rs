@@ -126,9 +126,15 @@ impl Reporter {
     }
 
     /// End of run: waits (bounded) until held records are queued, then closes the queue.
-    pub fn finish(mut self, timeout: std::time::Duration) {
+    pub fn finish(self, timeout: std::time::Duration) {
+        self.finish_unless(timeout, || false);
+    }
+
+    /// [`Reporter::finish`], giving up the wait as soon as `give_up` says so
+    /// (a signal: the user would rather lose the held records than wait).
+    pub fn finish_unless(mut self, timeout: std::time::Duration, give_up: impl Fn() -> bool) {
         let deadline = std::time::Instant::now() + timeout;
-        while !self.held.is_empty() && std::time::Instant::now() < deadline {
+        while !self.held.is_empty() && std::time::Instant::now() < deadline && !give_up() {
             self.retry_held();
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
@@ -324,5 +330,34 @@ mod tests {
         assert!(got.contains(&final_height(0)), "first final lost");
         assert!(got.contains(&final_height(10)), "second final lost");
         assert!(counters.dropped_queue.load(Ordering::Relaxed) >= 6);
+    }
+
+    #[test]
+    fn finish_holds_finals_until_the_timeout_or_a_signal() {
+        // Queue of 2, nobody reading: the third final is held.
+        let (mut rep, rx, counters) = Reporter::new(2, 8);
+        for f in 0..3 {
+            rep.send(final_height(f));
+        }
+        let t0 = std::time::Instant::now();
+        rep.finish_unless(std::time::Duration::from_secs(30), || true);
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(5),
+            "gave up at once"
+        );
+        assert_eq!(counters.dropped_queue.load(Ordering::Relaxed), 1);
+        assert_eq!(rx.try_iter().count(), 2);
+        // Without a signal, the held final goes out once there is room.
+        let (mut rep, rx, counters) = Reporter::new(2, 8);
+        for f in 0..3 {
+            rep.send(final_height(f));
+        }
+        let reader = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            rx.iter().count()
+        });
+        rep.finish(std::time::Duration::from_secs(30));
+        assert_eq!(reader.join().unwrap(), 3);
+        assert_eq!(counters.dropped_queue.load(Ordering::Relaxed), 0);
     }
 }
