@@ -340,9 +340,10 @@ mod tests {
             rep.send(final_height(f));
         }
         let t0 = std::time::Instant::now();
-        rep.finish_unless(std::time::Duration::from_secs(30), || true);
+        rep.finish_unless(std::time::Duration::from_secs(3600), || true);
+        // (Not a speed check: it must not sit out the hour.)
         assert!(
-            t0.elapsed() < std::time::Duration::from_secs(5),
+            t0.elapsed() < std::time::Duration::from_secs(60),
             "gave up at once"
         );
         assert_eq!(counters.dropped_queue.load(Ordering::Relaxed), 1);
