@@ -677,7 +677,8 @@ fn demo(a: DemoArgs) -> i32 {
                 .map(|m| m.id),
         })
         .collect();
-    let calibration_missing = calibration_missing(total, sim.frames());
+    // The frames actually run: a signal may have stopped the demo early.
+    let calibration_missing = calibration_missing(sim.position().min(total), sim.frames());
     let table = demo::comparison_table(
         sim.scene_truth(),
         &cast,
