@@ -80,7 +80,7 @@ pub fn weights(data: &[u8]) {
 pub fn calibration_state(data: &[u8]) {
     if let Ok(saved) = parse_state(data) {
         let mut c = Calibrator::new(&CalibrateConfig::default(), 640, 480);
-        c.resume(&saved);
+        let _ = c.resume(&saved);
         let _ = c.update(1);
         let _ = c.finish(2);
     }

@@ -546,9 +546,8 @@ fn run_source(
     );
     // The sinks may still hold records (MQTT waits up to its
     // shutdown_timeout_s for an absent broker). The vision side is done and
-    // the state and snapshot are written: a signal now ends the wait.
-    // A signal that came after the loop's last look (while the state or
-    // snapshot was written) is the one that ends this wait.
+    // the state and snapshot are written: a signal now ends the wait, also
+    // one that came after the loop's last look (while they were written).
     let late_signal =
         stop.swap(false, Ordering::Relaxed) && summary.stopped_by != run::StopReason::Signal;
     let give_up = || late_signal || stop.load(Ordering::Relaxed);

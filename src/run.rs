@@ -172,25 +172,22 @@ impl Pipeline {
                     return c;
                 }
             };
-            let (w, h) = (info.size.width, info.size.height);
             // Why the file cannot be resumed from, and the suffix it is
             // renamed aside with.
             let unusable = match file.load() {
-                Ok(Some(saved)) if (saved.width as usize, saved.height as usize) == (w, h) => {
-                    let n = c.resume(&saved);
-                    log::info!(
-                        "calibration state {}: resumed {n} observations",
-                        cfg.run.state
-                    );
-                    None
-                }
-                Ok(Some(saved)) => Some((
-                    format!(
-                        "it is for {}x{} frames, not {w}x{h}",
-                        saved.width, saved.height
-                    ),
-                    format!("{}x{}", saved.width, saved.height),
-                )),
+                Ok(Some(saved)) => match c.resume(&saved) {
+                    Ok(n) => {
+                        log::info!(
+                            "calibration state {}: resumed {n} observations",
+                            cfg.run.state
+                        );
+                        None
+                    }
+                    Err([sw, sh, w, h]) => Some((
+                        format!("it is for {sw}x{sh} frames, not {w}x{h}"),
+                        format!("{sw}x{sh}"),
+                    )),
+                },
                 Ok(None) => {
                     log::info!("calibration state {}: new file", cfg.run.state);
                     None

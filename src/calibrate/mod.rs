@@ -549,18 +549,15 @@ impl Calibrator {
         self.state = Some(st);
     }
 
-    /// Resumes from a loaded state (anchors of earlier runs; image size
-    /// must match). Returns the number of anchors restored.
-    pub fn resume(&mut self, saved: &state::Saved) -> usize {
+    /// Resumes from a loaded state (anchors of earlier runs). Returns the
+    /// number of anchors restored, or, when the state is for another frame
+    /// size, that size and this calibrator's (`[saved w, h, own w, h]`),
+    /// restoring nothing.
+    pub fn resume(&mut self, saved: &state::Saved) -> Result<usize, [u32; 4]> {
         let w = (self.norm.p[0] * 2.0 + 1.0).round() as u32;
         let h = (self.norm.p[1] * 2.0 + 1.0).round() as u32;
         if saved.width != w || saved.height != h {
-            log::warn!(
-                "calibration state is for {}x{} frames, not {w}x{h}: ignored",
-                saved.width,
-                saved.height
-            );
-            return 0;
+            return Err([saved.width, saved.height, w, h]);
         }
         let mut n = 0;
         // Earlier runs' track ids could collide with this run's: give them
@@ -581,7 +578,7 @@ impl Calibrator {
         self.new_anchors = 0;
         self.refit();
         self.emitted = None;
-        n
+        Ok(n)
     }
 
     /// The full refit (bounded work: every stored anchor a few dozen times).

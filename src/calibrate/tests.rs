@@ -215,7 +215,7 @@ fn state_file_round_trip_and_corrupt_file() {
     assert!(!path.with_extension("json.tmp").exists());
     let saved = state::StateFile::new(&path, 0).load().unwrap().unwrap();
     let mut d = Calibrator::new(&cfg, 640, 480);
-    let n = d.resume(&saved);
+    let n = d.resume(&saved).unwrap();
     assert_eq!(n, c.anchor_count());
     // Every saved anchor is restored as it was (not re-smoothed as if it
     // were a new frame's observation).
@@ -224,7 +224,8 @@ fn state_file_round_trip_and_corrupt_file() {
     assert!((e.geom.focal() / f64::from(fin.f_px) - 1.0).abs() < 0.01);
     // A different frame size is refused.
     let mut other = Calibrator::new(&cfg, 800, 600);
-    assert_eq!(other.resume(&saved), 0);
+    assert_eq!(other.resume(&saved), Err([640, 480, 800, 600]));
+    assert_eq!(other.anchor_count(), 0);
     // A crash part-way through a write leaves a torn temporary file behind
     // (tests/suite/faults.rs crashes the real process mid-write): readers
     // never look at it, and the next write replaces it.
