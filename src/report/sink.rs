@@ -5,7 +5,7 @@
 //! thread), so one dead link delays the others by at most its timeout, and
 //! the vision loop not at all.
 
-use super::mqtt::{MqttConfig, MqttSettings, MqttSpec};
+use super::mqtt::{MqttConfig, MqttSettings, MqttSpec, MQTT_CREDENTIALS};
 use super::record::Record;
 use super::Counters;
 use crate::config::Format;
@@ -142,10 +142,6 @@ impl SinkSpec {
         }
     }
 }
-
-/// Where to point users who put credentials in a sink.
-const MQTT_CREDENTIALS: &str = "set [report.mqtt] username/password in the config file \
-     or the environment variables STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD";
 
 /// The host part of a sink's value after `scheme:` or `scheme://`: up to
 /// the first `/` or `?`.

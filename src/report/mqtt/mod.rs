@@ -277,8 +277,7 @@ impl MqttSpec {
                 "username" | "password" | "user" | "pass" => {
                     return Err(format!(
                         "`{k}` is not accepted in an mqtt: sink (a sink is shown in process lists and logs): \
-                         set [report.mqtt] username/password in the config file or the environment variables \
-                         STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD"
+                         {MQTT_CREDENTIALS}"
                     ))
                 }
                 _ => return Err(format!("unknown mqtt option `{k}` (expected {MQTT_KEYS})")),
@@ -347,6 +346,11 @@ pub fn check_client_ids<'a>(
     }
     Ok(())
 }
+
+/// Where to point users who put credentials in a sink (its query or its
+/// host).
+pub(crate) const MQTT_CREDENTIALS: &str = "set [report.mqtt] username/password in the config file \
+     or the environment variables STATURE_MQTT_USERNAME/STATURE_MQTT_PASSWORD";
 
 /// Refuses a CA file for a connection without TLS: a plain connection
 /// would ignore it, and whoever gave one meant the link to be encrypted.
