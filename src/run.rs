@@ -15,6 +15,7 @@ use crate::report::record::{self, Bye, Calibration, Height, Hello, Record, Statu
 use crate::report::Reporter;
 use crate::source::{FrameSource, Next, SourceError, SourceInfo, SourceState};
 use crate::track::Tracker;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -540,40 +541,74 @@ pub fn mem_available(text: &str) -> Option<u64> {
     kib.checked_mul(1024)
 }
 
-/// Room left under a cgroup v2 memory limit: `memory.max` minus
-/// `memory.current`, not counting the page cache in it (`file` of
-/// `memory.stat`; the kernel reclaims it before it would refuse memory,
-/// and a service restarted after reading a large file holds much of it).
-/// The arguments are the three files' text; `None` without a limit.
-pub fn cgroup_room(max: &str, current: &str, stat: &str) -> Option<u64> {
-    let max: u64 = max.trim().parse().ok()?; // "max": no limit
+/// Room left under a cgroup memory limit: the limit (v2 `memory.max`, v1
+/// `memory.limit_in_bytes`) minus the usage (`memory.current`,
+/// `memory.usage_in_bytes`), not counting the page cache in it (the
+/// `cache_key` line of `memory.stat`: `file` in v2, `total_cache` in v1;
+/// the kernel reclaims it before it would refuse memory, and a service
+/// restarted after reading a large file holds much of it). The arguments
+/// are the files' text; `None` without a limit (v2 writes "max"; v1's
+/// "unlimited" is a number near 2^63, which leaves room enough).
+pub fn cgroup_room(max: &str, current: &str, stat: &str, cache_key: &str) -> Option<u64> {
+    let max: u64 = max.trim().parse().ok()?;
     let current: u64 = current.trim().parse().ok()?;
     let cache: u64 = stat
         .lines()
-        .find_map(|l| l.strip_prefix("file "))
+        .find_map(|l| l.strip_prefix(cache_key)?.strip_prefix(' '))
         .and_then(|v| v.trim().parse().ok())
         .unwrap_or(0);
     Some(max.saturating_sub(current.saturating_sub(cache)))
 }
 
+/// Where this process's memory controller lives, from the text of
+/// `/proc/self/cgroup`: the cgroup v2 directory (line `0::/PATH`) and the
+/// v1 memory hierarchy's (`N:...memory...:/PATH`, mounted at
+/// `/sys/fs/cgroup/memory`). Older board images (systemd before v2 was the
+/// default, hybrid mode) have the limit only in the second.
+pub fn memory_cgroup_dirs(proc_self_cgroup: &str) -> (Option<PathBuf>, Option<PathBuf>) {
+    let root = std::path::Path::new("/sys/fs/cgroup");
+    let v2 = proc_self_cgroup
+        .lines()
+        .find_map(|l| l.strip_prefix("0::"))
+        .map(|p| root.join(p.trim_start_matches('/')));
+    let v1 = proc_self_cgroup.lines().find_map(|l| {
+        let mut parts = l.splitn(3, ':');
+        let (_, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
+        controllers
+            .split(',')
+            .any(|c| c == "memory")
+            .then(|| root.join("memory").join(path.trim_start_matches('/')))
+    });
+    (v2, v1)
+}
+
 /// The memory this process can still take, in bytes: the system's
-/// `MemAvailable`, and under a cgroup v2 limit (the service's `MemoryMax`,
-/// which the board profiles set) the room left below it, whichever is less.
-/// `None` when neither can be read.
+/// `MemAvailable`, and under a cgroup limit (the service's `MemoryMax`,
+/// which the board profiles set; v2, or v1 on older images) the room left
+/// below it, whichever is less. `None` when neither can be read.
 pub fn memory_room() -> Option<u64> {
     let system = std::fs::read_to_string("/proc/meminfo")
         .ok()
         .and_then(|t| mem_available(&t));
+    let read = |dir: &Path, files: [&str; 3], cache_key: &str| {
+        let max = std::fs::read_to_string(dir.join(files[0])).ok()?;
+        let current = std::fs::read_to_string(dir.join(files[1])).ok()?;
+        let stat = std::fs::read_to_string(dir.join(files[2])).unwrap_or_default();
+        cgroup_room(&max, &current, &stat, cache_key)
+    };
     let cgroup = std::fs::read_to_string("/proc/self/cgroup")
         .ok()
         .and_then(|t| {
-            // cgroup v2: the one line `0::/PATH`.
-            let path = t.lines().find_map(|l| l.strip_prefix("0::"))?.to_string();
-            let dir = std::path::Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
-            let max = std::fs::read_to_string(dir.join("memory.max")).ok()?;
-            let current = std::fs::read_to_string(dir.join("memory.current")).ok()?;
-            let stat = std::fs::read_to_string(dir.join("memory.stat")).unwrap_or_default();
-            cgroup_room(&max, &current, &stat)
+            let (v2, v1) = memory_cgroup_dirs(&t);
+            v2.and_then(|d| read(&d, ["memory.max", "memory.current", "memory.stat"], "file"))
+                .or_else(|| {
+                    let files = [
+                        "memory.limit_in_bytes",
+                        "memory.usage_in_bytes",
+                        "memory.stat",
+                    ];
+                    v1.and_then(|d| read(&d, files, "total_cache"))
+                })
         });
     match (system, cgroup) {
         (Some(a), Some(b)) => Some(a.min(b)),
@@ -731,17 +766,51 @@ mod tests {
         assert_eq!(mem_available("MemTotal: 1 kB\n"), None);
         assert_eq!(mem_available("MemAvailable: lots kB\n"), None);
         assert_eq!(
-            cgroup_room("268435456\n", "100663296\n", ""),
+            cgroup_room("268435456\n", "100663296\n", "", "file"),
             Some(160 << 20)
         );
         // 64 MiB of it page cache: room for that too.
-        let stat = "anon 33554432\nfile 67108864\nkernel 1048576\n";
+        let stat = "anon 33554432\nfile_mapped 1\nfile 67108864\nkernel 1048576\n";
         assert_eq!(
-            cgroup_room("268435456\n", "100663296\n", stat),
+            cgroup_room("268435456\n", "100663296\n", stat, "file"),
             Some(224 << 20)
         );
-        assert_eq!(cgroup_room("max\n", "100663296\n", ""), None);
-        assert_eq!(cgroup_room("1000\n", "2000\n", ""), Some(0));
+        assert_eq!(cgroup_room("max\n", "100663296\n", "", "file"), None);
+        assert_eq!(cgroup_room("1000\n", "2000\n", "", "file"), Some(0));
+        // cgroup v1: the hierarchical cache line, not this group's own.
+        let stat = "cache 1048576\nrss 2097152\ntotal_cache 67108864\n";
+        assert_eq!(
+            cgroup_room("268435456\n", "100663296\n", stat, "total_cache"),
+            Some(224 << 20)
+        );
+        // v1 without a limit: PAGE_COUNTER_MAX pages, room beyond any system's memory.
+        let unlimited = cgroup_room("9223372036854771712\n", "100663296\n", "", "total_cache");
+        assert!(unlimited.unwrap() > 1 << 60);
+    }
+
+    #[test]
+    fn the_memory_cgroup_is_found_in_v2_v1_and_hybrid_layouts() {
+        let root = Path::new("/sys/fs/cgroup");
+        let v2 = "0::/system.slice/stature.service\n";
+        assert_eq!(
+            memory_cgroup_dirs(v2),
+            (Some(root.join("system.slice/stature.service")), None)
+        );
+        let v1 = "12:pids:/system.slice/stature.service\n\
+                  4:memory:/system.slice/stature.service\n\
+                  3:cpu,cpuacct:/system.slice/stature.service\n";
+        assert_eq!(
+            memory_cgroup_dirs(v1),
+            (None, Some(root.join("memory/system.slice/stature.service")))
+        );
+        // Hybrid: both; memory_room tries v2's files first, which hold no
+        // memory controller there, then v1's.
+        let hybrid = format!("{v1}0::/system.slice/stature.service\n");
+        let (a, b) = memory_cgroup_dirs(&hybrid);
+        assert!(a.is_some() && b.is_some());
+        // Controllers joined with others, and a controller merely named like it.
+        assert!(memory_cgroup_dirs("7:cpu,memory:/a\n").1.is_some());
+        assert!(memory_cgroup_dirs("7:memory_extra:/a\n").1.is_none());
     }
 
     #[test]
