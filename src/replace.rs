@@ -1,6 +1,8 @@
 //! Files the product replaces whole (the calibration state, the installer
-//! snapshot): written to `PATH.tmp` beside the target and renamed over it,
-//! so that a reader or a power cut sees the old file or the new one.
+//! snapshot): written to `PATH.stature-tmp` beside the target and renamed
+//! over it, so that a reader or a power cut sees the old file or the new
+//! one. The suffix is the product's own: `PATH.tmp` may be someone's file
+//! (`--state notes` must not truncate `notes.tmp`).
 //!
 //! A rename replaces whatever is at the path. Two cases must not be
 //! replaced: a symbolic link (an installer who points `--state` at a file
@@ -47,10 +49,10 @@ pub fn target(path: &Path) -> io::Result<PathBuf> {
     Err(io::Error::other("too many levels of symbolic links"))
 }
 
-/// `PATH.tmp`: the temporary file beside `path`.
+/// `PATH.stature-tmp`: the temporary file beside `path`.
 pub fn tmp_beside(path: &Path) -> PathBuf {
     let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
+    tmp.push(".stature-tmp");
     PathBuf::from(tmp)
 }
 
@@ -72,7 +74,7 @@ mod tests {
         assert_eq!(target(&f).unwrap(), f);
         std::fs::write(&f, b"x").unwrap();
         assert_eq!(target(&f).unwrap(), f);
-        assert_eq!(tmp_beside(&f), d.join("a.state.tmp"));
+        assert_eq!(tmp_beside(&f), d.join("a.state.stature-tmp"));
     }
 
     #[cfg(unix)]

@@ -134,7 +134,7 @@ impl StateFile {
     /// A state file at `path`, checked now so that a run does not find out
     /// at its first write: a symbolic link is followed (the file it points
     /// to is the one replaced), anything but a regular file is refused, and
-    /// `PATH.tmp` is created and removed in the target's directory.
+    /// `PATH.stature-tmp` is created and removed in the target's directory.
     pub fn open(path: &Path, capacity: usize) -> Result<Self, StateError> {
         let target = crate::replace::target(path).map_err(StateError::Io)?;
         let file = StateFile::new(&target, capacity);

@@ -212,7 +212,7 @@ fn state_file_round_trip_and_corrupt_file() {
         c.update(o.frame);
     }
     let fin = c.finish(obs.last().unwrap().frame).unwrap();
-    assert!(!path.with_extension("json.tmp").exists());
+    assert!(!path.with_extension("json.stature-tmp").exists());
     let saved = state::StateFile::new(&path, 0).load().unwrap().unwrap();
     let mut d = Calibrator::new(&cfg, 640, 480);
     let n = d.resume(&saved).unwrap();
@@ -230,7 +230,7 @@ fn state_file_round_trip_and_corrupt_file() {
     // (tests/suite/faults.rs crashes the real process mid-write): readers
     // never look at it, and the next write replaces it.
     let complete = std::fs::read(&path).unwrap();
-    let tmp = path.with_extension("json.tmp");
+    let tmp = path.with_extension("json.stature-tmp");
     for cut in [0, 1, complete.len() / 2, complete.len() - 1] {
         std::fs::write(&tmp, &complete[..cut]).unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), complete, "cut at {cut}");

@@ -578,7 +578,7 @@ pub struct SnapshotFile {
 }
 
 impl SnapshotFile {
-    /// Checks that `path` can be written by creating `PATH.tmp` now (beside
+    /// Checks that `path` can be written by creating `PATH.stature-tmp` now (beside
     /// the file a symbolic link at `path` points to).
     pub fn create(path: &Path) -> Result<Self, SnapshotError> {
         let err = |error| SnapshotError {

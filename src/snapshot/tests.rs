@@ -288,7 +288,7 @@ fn snapshot_file_is_checked_at_creation_and_replaced_whole() {
     let path = dir.join("s.png");
     std::fs::write(&path, b"old").unwrap();
     let mut f = SnapshotFile::create(&path).unwrap();
-    let tmp = dir.join("s.png.tmp");
+    let tmp = dir.join("s.png.stature-tmp");
     assert!(tmp.exists());
     assert_eq!(
         std::fs::read(&path).unwrap(),

@@ -189,7 +189,7 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "/nonexistent-dir/x.state".into(),
             ],
             3,
-            "cannot create /nonexistent-dir/x.state.tmp",
+            "cannot create /nonexistent-dir/x.state.stature-tmp",
         ),
         (
             vec!["--config".into(), both_scales.display().to_string()],
@@ -627,7 +627,7 @@ fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
         })
     };
     crate::snapshot::assert_horizon_drawn(&pixel, (w, h), horizon);
-    assert!(!dir.join("run-snapshot.png.tmp").exists());
+    assert!(!dir.join("run-snapshot.png.stature-tmp").exists());
 }
 
 #[test]
@@ -703,7 +703,7 @@ fn a_state_path_that_is_a_link_updates_the_linked_file() {
         text.contains("\"version\""),
         "the linked file holds the state: {text}"
     );
-    assert!(!dir.join("persist/cam.state.tmp").exists());
+    assert!(!dir.join("persist/cam.state.stature-tmp").exists());
 }
 
 /// A `--state` file that cannot be resumed from is renamed aside, never
@@ -716,6 +716,10 @@ fn a_state_file_that_cannot_be_resumed_from_is_kept_aside() {
     let state = dir.join("cam.toml");
     let config = "[report]\nsinks = [\"stdout\"]\n";
     std::fs::write(&state, config).unwrap();
+    // Someone's file beside it with the common temporary suffix: the state
+    // writes use a suffix of their own.
+    let neighbour = dir.join("cam.toml.tmp");
+    std::fs::write(&neighbour, "draft").unwrap();
     let state_arg = state.to_str().unwrap();
     let args = [
         "run",
@@ -739,6 +743,8 @@ fn a_state_file_that_cannot_be_resumed_from_is_kept_aside() {
     );
     let written = std::fs::read_to_string(&state).unwrap();
     assert!(written.contains("\"width\":64"), "a new state: {written}");
+    assert_eq!(std::fs::read_to_string(&neighbour).unwrap(), "draft");
+    assert!(!dir.join("cam.toml.stature-tmp").exists());
     // Again: the first one set aside stays, the second gets a number.
     std::fs::write(&state, "not json").unwrap();
     let out = run(&args);
@@ -858,7 +864,7 @@ fn a_snapshot_path_naming_another_format_is_exit_2_before_the_run_starts() {
         assert_eq!(out.status.code(), Some(0), "{name}: {err}");
         assert_eq!(crate::snapshot::read_png(&path).0, (64, 48), "{name}");
     }
-    assert!(!dir.join("x.jpg").exists() && !dir.join("x.jpg.tmp").exists());
+    assert!(!dir.join("x.jpg").exists() && !dir.join("x.jpg.stature-tmp").exists());
 }
 
 #[test]
