@@ -217,11 +217,16 @@ impl StateFile {
         serde_json::to_writer(&mut self.buf, view)
             .map_err(|e| StateError::Corrupt(e.to_string()))?;
         self.buf.push(b'\n');
-        let mut f = File::create(&self.tmp).map_err(StateError::Io)?;
-        f.write_all(&self.buf).map_err(StateError::Io)?;
-        f.sync_all().map_err(StateError::Io)?;
-        drop(f);
-        std::fs::rename(&self.tmp, &self.path).map_err(StateError::Io)?;
+        let written = File::create(&self.tmp).and_then(|mut f| {
+            f.write_all(&self.buf)?;
+            f.sync_all()
+        });
+        if let Err(e) = written.and_then(|()| std::fs::rename(&self.tmp, &self.path)) {
+            // A full disk: the torn temporary file would hold on to the
+            // space the next write needs.
+            let _ = std::fs::remove_file(&self.tmp);
+            return Err(StateError::Io(e));
+        }
         // The rename itself is durable only once the directory is synced;
         // some filesystems refuse to open directories, which is harmless.
         if let Ok(d) = File::open(&self.dir) {

@@ -244,6 +244,19 @@ fn state_file_round_trip_and_corrupt_file() {
     c.finish(next + super::ANCHOR_SMOOTHING as u64).unwrap();
     assert!(!tmp.exists(), "the leftover was replaced and renamed");
     assert_ne!(std::fs::read(&path).unwrap(), complete, "a new version");
+    // A write that fails (here the rename: a non-empty directory now
+    // stands at the path; on a board, more often a full disk) leaves no
+    // temporary file holding on to the space.
+    let blocked = dir.join("blocked");
+    std::fs::create_dir_all(blocked.join("inside")).unwrap();
+    c.state = Some(state::StateFile::new(&blocked, 1 << 20));
+    c.observe(next + 100, 998, obs[0].hf);
+    c.finish(next + 101).unwrap();
+    assert!(
+        blocked.join("inside").is_dir(),
+        "the directory is untouched"
+    );
+    assert!(!dir.join("blocked.stature-tmp").exists());
     // Corrupt content is an error, not a panic.
     std::fs::write(&path, b"{\"version\":1,\"width\":640,").unwrap();
     assert!(matches!(
