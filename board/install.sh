@@ -1,13 +1,16 @@
 #!/bin/sh
 # Installs stature on a board (run as root on the board):
 #   sh install.sh --profile rpi4-aarch64.toml [--binary ./stature]
-#                 [--report udp:192.168.1.20:9000]... [--no-systemd]
+#                 [--report udp:192.168.1.20:9000]... [--replace-config] [--no-systemd]
 # Copies the binary to /usr/local/bin, the profile to /etc/stature/stature.toml
 # (--report replaces the profile's placeholder sink "udp:127.0.0.1:9000";
 # other sinks, e.g. a UART, stay), the unit to /etc/systemd/system, the
-# profile's [board] caps into a unit drop-in; creates the `stature` system
+# config's [board] caps into a unit drop-in; creates the `stature` system
 # user in groups video and dialout; enables and starts the service.
-# Idempotent: run it again to upgrade the binary or change the profile.
+# Run it again to upgrade: an existing /etc/stature/stature.toml (your edits,
+# an MQTT password) is kept, the profile goes beside it as stature.toml.dist
+# unless --replace-config. The config is root:stature, mode 0640: the
+# service reads it, other users do not (it may hold a broker password).
 # POSIX sh and busybox-compatible; DESTDIR=/some/root installs into a tree.
 set -eu
 
@@ -16,13 +19,24 @@ profile=""
 binary=""
 reports=""
 systemd=1
+replace_config=0
 while [ $# -gt 0 ]; do
+    case "$1" in
+        --profile | --binary | --report)
+            [ $# -ge 2 ] || { echo "install.sh: $1 needs a value (see --help)" >&2; exit 2; } ;;
+    esac
     case "$1" in
         --profile) profile=$2; shift 2 ;;
         --binary) binary=$2; shift 2 ;;
-        --report) reports="$reports${reports:+, }\"$2\""; shift 2 ;;
+        --report)
+            # A TOML basic string: a quote or backslash would end or escape it.
+            case "${2-}" in
+                "" | *\"* | *\\*) echo "install.sh: --report needs a sink URI without quotes or backslashes" >&2; exit 2 ;;
+            esac
+            reports="$reports${reports:+, }\"$2\""; shift 2 ;;
+        --replace-config) replace_config=1; shift ;;
         --no-systemd) systemd=0; shift ;;
-        -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
         *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -81,36 +95,67 @@ done
 
 # --- files.
 mkdir -p "$D/usr/local/bin" "$D/etc/stature" "$D/etc/systemd/system/stature.service.d"
-# Copy then rename: replacing a running binary in place would fail (ETXTBSY).
-cp "$binary" "$D/usr/local/bin/.stature.new"
-chmod 0755 "$D/usr/local/bin/.stature.new"
-mv -f "$D/usr/local/bin/.stature.new" "$D/usr/local/bin/stature"
+conf=$D/etc/stature/stature.toml
 if [ -n "$reports" ]; then
     # Profiles name the workstation as the placeholder udp:127.0.0.1:9000.
     grep -q '"udp:127.0.0.1:9000"' "$profile" || {
         echo "install.sh: $profile has no \"udp:127.0.0.1:9000\" sink for --report to replace" >&2
         exit 2
     }
-    sed "s|\"udp:127.0.0.1:9000\"|$reports|" "$profile" >"$D/etc/stature/stature.toml.new"
+    # `&` (the matched text) and `|` (the delimiter) are special in the
+    # replacement: mqtt:HOST?topic=a&qos=1 must arrive as written.
+    escaped=$(printf '%s\n' "$reports" | sed 's/[&|]/\\&/g')
+    sed "s|\"udp:127.0.0.1:9000\"|$escaped|" "$profile" >"$conf.new"
 else
-    cp "$profile" "$D/etc/stature/stature.toml.new"
+    cp "$profile" "$conf.new"
 fi
-chmod 0644 "$D/etc/stature/stature.toml.new"
-# Refuse a profile the binary does not accept (when the binary runs here).
+# Root-owned, readable by the service's group only. Numeric ids: under
+# DESTDIR the tree's group file counts, not this machine's.
+protect() {
+    chmod 0640 "$1"
+    gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
+    chown "0:$gid" "$1" 2>/dev/null || [ -n "$D" ] || {
+        echo "install.sh: cannot give $1 to group stature (run as root)" >&2
+        exit 1
+    }
+}
+protect "$conf.new"
+# The config the service will read, checked by the new binary before
+# anything is replaced (when it runs here, i.e. not into a DESTDIR tree).
+keep=0
+if [ -f "$conf" ] && [ "$replace_config" = 0 ] && ! cmp -s "$conf" "$conf.new"; then
+    keep=1
+fi
 if [ -z "$D" ]; then
-    "$D/usr/local/bin/stature" config --check "$D/etc/stature/stature.toml.new"
+    if [ "$keep" = 1 ]; then checked=$conf; else checked=$conf.new; fi
+    "$binary" config --check "$checked" || {
+        rm -f "$conf.new"
+        echo "install.sh: $checked is refused by the new binary; the binary and the config were left as they were" >&2
+        exit 2
+    }
 fi
-mv -f "$D/etc/stature/stature.toml.new" "$D/etc/stature/stature.toml"
+if [ "$keep" = 1 ]; then
+    mv -f "$conf.new" "$conf.dist"
+    protect "$conf"
+    echo "install.sh: kept your $conf; the profile (and any --report) is in $conf.dist (compare them; --replace-config installs it)"
+else
+    mv -f "$conf.new" "$conf"
+fi
+# Copy then rename: replacing a running binary in place would fail (ETXTBSY).
+cp "$binary" "$D/usr/local/bin/.stature.new"
+chmod 0755 "$D/usr/local/bin/.stature.new"
+mv -f "$D/usr/local/bin/.stature.new" "$D/usr/local/bin/stature"
 cp "$here/stature.service" "$D/etc/systemd/system/stature.service"
 chmod 0644 "$D/etc/systemd/system/stature.service"
 # Board caps from the profile's [board] section -> systemd resource control.
 board_value() {
-    sed -n '/^\[board\]/,/^\[/ s/^'"$1"' *= *\([0-9]*\).*/\1/p' "$D/etc/stature/stature.toml" | head -1
+    sed -n '/^\[board\]/,/^\[/ s/^'"$1"' *= *\([0-9]*\).*/\1/p' "$conf" | head -1
 }
 mem=$(board_value memory_max_mib)
 cpu=$(board_value cpu_quota_percent)
 {
-    echo "# From the [board] section of /etc/stature/stature.toml (board/install.sh)."
+    echo "# From the [board] section of /etc/stature/stature.toml (board/install.sh;"
+    echo "# run it again after changing those caps there)."
     echo "[Service]"
     [ -n "$mem" ] && [ "$mem" != 0 ] && echo "MemoryMax=${mem}M"
     [ -n "$cpu" ] && [ "$cpu" != 0 ] && echo "CPUQuota=${cpu}%"

@@ -3,6 +3,7 @@
 //! under `ProtectSystem=strict` only the `StateDirectory` is writable, and
 //! the device nodes a profile names must be reachable by the unit's groups.
 
+use crate::common;
 use stature::config::Config;
 use stature::report::sink::SinkSpec;
 use std::path::{Path, PathBuf};
@@ -188,4 +189,87 @@ fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
     // Devices a profile may name are allowed by the device policy.
     let allowed = unit_values(&unit, "DeviceAllow").join(" ");
     assert!(allowed.contains("char-video4linux"), "{allowed}");
+}
+
+/// `board/install.sh` into a scratch tree (`DESTDIR`), as an installer
+/// runs it twice: the first time with a sink URI holding `&` (which sed
+/// once turned into the matched text), the second time to upgrade, after
+/// editing the config (which the upgrade once replaced, credentials and
+/// sinks lost, and left world-readable).
+#[test]
+fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config() {
+    use std::os::unix::fs::PermissionsExt;
+    let root = common::fresh_dir("board-install_sh_keeps_the_edited_config");
+    std::fs::create_dir_all(root.join("etc")).unwrap();
+    std::fs::write(root.join("etc/group"), "root:x:0:\n").unwrap();
+    std::fs::write(root.join("etc/passwd"), "root:x:0:0:root:/root:/bin/sh\n").unwrap();
+    // Not run under DESTDIR (it may be another architecture's binary).
+    let binary = root.join("stature-arm");
+    std::fs::write(&binary, "#!/bin/sh\nexit 9\n").unwrap();
+    std::fs::set_permissions(&binary, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let install = |extra: &[&str]| {
+        let out = std::process::Command::new("sh")
+            .arg(board_dir().join("install.sh"))
+            .args(["--profile", "rpi4-aarch64.toml", "--no-systemd", "--binary"])
+            .arg(&binary)
+            .args(extra)
+            .env("DESTDIR", &*root)
+            .output()
+            .expect("run sh board/install.sh");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (out.status.code(), text)
+    };
+    let conf = root.join("etc/stature/stature.toml");
+    let mqtt = "mqtt:broker.lan?topic=stature/entrance&qos=1";
+    let (code, log) = install(&["--report", mqtt, "--report", "udp:10.0.0.5:9000"]);
+    assert_eq!(code, Some(0), "{log}");
+    let cfg = Config::load(&conf, "--config").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(cfg.report.sinks[..2], [mqtt, "udp:10.0.0.5:9000"]);
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(
+        mode(&conf),
+        0o640,
+        "readable by root and the service's group only"
+    );
+    assert!(std::fs::read_to_string(root.join("etc/group"))
+        .unwrap()
+        .contains("stature:x:"));
+
+    // The installer's edit: a broker password, the file made private.
+    let mut edited = std::fs::read_to_string(&conf).unwrap();
+    edited.push_str("\n[report.mqtt]\nusername = \"stature\"\npassword = \"change-me\"\n");
+    std::fs::write(&conf, &edited).unwrap();
+    std::fs::set_permissions(&conf, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let (code, log) = install(&[]);
+    assert_eq!(code, Some(0), "{log}");
+    assert_eq!(std::fs::read_to_string(&conf).unwrap(), edited, "kept");
+    assert!(
+        log.contains("kept your") && log.contains("stature.toml.dist"),
+        "{log}"
+    );
+    assert_eq!(
+        mode(&conf),
+        0o640,
+        "the service can read it, others still cannot"
+    );
+    let dist = root.join("etc/stature/stature.toml.dist");
+    assert!(std::fs::read_to_string(&dist)
+        .unwrap()
+        .contains("\"udp:127.0.0.1:9000\""));
+    // Asked for: the profile replaces it.
+    let (code, log) = install(&["--replace-config"]);
+    assert_eq!(code, Some(0), "{log}");
+    assert!(!std::fs::read_to_string(&conf).unwrap().contains("password"));
+
+    // A value TOML cannot hold as written, and a missing value.
+    let (code, log) = install(&["--report", "udp:a\"b:1"]);
+    assert_eq!(code, Some(2), "{log}");
+    assert!(log.contains("without quotes or backslashes"), "{log}");
+    let (code, log) = install(&["--report"]);
+    assert_eq!(code, Some(2), "{log}");
+    assert!(log.contains("--report needs a value"), "{log}");
 }
