@@ -228,6 +228,23 @@ fn decode_all_postcard(bytes: &[u8]) -> Vec<Record> {
         .collect()
 }
 
+/// A broadcast destination (here the loopback network's, 127.255.255.255,
+/// which needs SO_BROADCAST like a LAN's x.x.x.255): every datagram used to
+/// fail with "Permission denied".
+#[test]
+fn udp_sink_sends_to_a_broadcast_address() {
+    let rx = UdpSocket::bind("0.0.0.0:0").unwrap();
+    rx.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let port = rx.local_addr().unwrap().port();
+    let spec = sink::SinkSpec::Udp(format!("127.255.255.255:{port}"));
+    let sink = sink::Sink::open(&spec).unwrap();
+    let (summary, dq, ds) = run_into(vec![sink], Format::Json, 20, 0.4);
+    assert_eq!((summary.frames, dq, ds), (20, 0, 0));
+    let mut buf = [0u8; 2048];
+    let n = rx.recv(&mut buf).expect("the hello datagram");
+    assert!(matches!(decode(Format::Json, &buf[..n]), Record::Hello(_)));
+}
+
 #[test]
 fn unreachable_udp_destination_neither_blocks_nor_crashes() {
     // A loopback port with nobody listening: the kernel answers with ICMP

@@ -328,6 +328,12 @@ impl Sink {
                 };
                 let sock = UdpSocket::bind(bind)?;
                 sock.set_nonblocking(true)?;
+                // A broadcast destination (255.255.255.255, a subnet's
+                // .255: every listener on the segment) is refused by the
+                // kernel with EACCES on every datagram unless asked for.
+                if dest.is_ipv4() {
+                    sock.set_broadcast(true)?;
+                }
                 Sink::Udp(sock, dest)
             }
             SinkSpec::Serial { path, baud } => {
