@@ -65,7 +65,7 @@ pub mod snapshot;
 /// Process exit codes, shared by the binary and documented in the README.
 pub mod exit {
     /// Clean end: end of stream, requested frame count reached, or
-    /// SIGINT/SIGTERM (also before the source sent its first frame).
+    /// SIGINT/SIGTERM/SIGHUP (also before the source sent its first frame).
     pub const OK: i32 = 0;
     /// Internal failure (should not happen; a bug report is welcome).
     pub const INTERNAL: i32 = 1;

@@ -438,11 +438,14 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
     }
 }
 
-/// A flag that SIGINT and SIGTERM set (the loop then stops after the
-/// current frame and sends its final records).
+/// A flag that SIGINT, SIGTERM and SIGHUP set (the loop then stops after
+/// the current frame and sends its final records). SIGHUP is the terminal
+/// going away, e.g. an SSH session dropping during `stature snapshot`:
+/// left at its default it killed the run with nothing final sent.
 fn stop_on_signals() -> Arc<AtomicBool> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+    for sig in [SIGINT, SIGTERM, SIGHUP] {
         if let Err(e) = signal_hook::flag::register(sig, stop.clone()) {
             log::warn!("cannot install handler for signal {sig}: {e}");
         }

@@ -97,7 +97,7 @@ pub enum SourceError {
     },
     /// This build lacks the source (e.g. `v4l2` feature off).
     Unsupported(&'static str),
-    /// A stop was asked for (SIGINT/SIGTERM) while the source was still
+    /// A stop was asked for (SIGINT/SIGTERM/SIGHUP) while the source was still
     /// opening, e.g. waiting on a pipe for its Y4M header.
     Stopped,
 }

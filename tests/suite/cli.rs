@@ -597,6 +597,14 @@ fn sigint_stops_cleanly_with_bye() {
     signal_stops_cleanly_with_bye("-INT");
 }
 
+/// The terminal going away (an installer's SSH session dropping during
+/// `stature snapshot`) is a stop like the others: it used to kill the run
+/// with no final records, no `bye` and no snapshot.
+#[test]
+fn sighup_stops_cleanly_with_bye() {
+    signal_stops_cleanly_with_bye("-HUP");
+}
+
 #[test]
 fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
     let dir =
