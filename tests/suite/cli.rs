@@ -344,6 +344,19 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             2,
             "= mqtt:127.0.0.1:2: same MQTT client id `stature-",
         ),
+        // The same sink twice sent every record twice.
+        (
+            vec![
+                "--source".into(),
+                src.clone(),
+                "--report".into(),
+                "stdout".into(),
+                "--report".into(),
+                "stdout".into(),
+            ],
+            2,
+            "= stdout: given twice (each record would be sent twice there)",
+        ),
         // A bad sink is named once, with one reason (before: "expected
         // `udp:host`: expected udp:HOST:PORT"), and by the option that
         // gave it (before: the config key `report.sinks`).
