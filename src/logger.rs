@@ -1,5 +1,11 @@
 //! A small stderr logger: level and seconds since start on every line.
 //! Reports go to stdout; logs never do.
+//!
+//! Under systemd, stderr is a stream into the journal, which stores every
+//! line at the unit's default priority unless the line starts with a
+//! syslog `<N>` prefix (which it strips). Without one, `journalctl -p err`
+//! showed none of the errors, so when stderr is the journal's stream the
+//! lines carry that prefix.
 
 use log::{Level, LevelFilter, Log, Metadata, Record};
 use std::io::Write;
@@ -8,9 +14,35 @@ use std::time::Instant;
 
 struct StderrLogger {
     start: Instant,
+    /// Prefix lines with the syslog priority (stderr is the journal).
+    journal: bool,
 }
 
 static LOGGER: OnceLock<StderrLogger> = OnceLock::new();
+
+/// The syslog priority journald files a line of `level` under.
+pub fn syslog_priority(level: Level) -> u8 {
+    match level {
+        Level::Error => 3,
+        Level::Warn => 4,
+        Level::Info => 6,
+        Level::Debug | Level::Trace => 7,
+    }
+}
+
+/// Whether stderr is the journal's stream: systemd sets `JOURNAL_STREAM` to
+/// `DEVICE:INODE` of the stream it connects, and a child that redirected
+/// stderr elsewhere (a pipe, a file) inherits the variable but not the
+/// stream, hence the comparison.
+pub fn is_journal_stream(journal_stream: Option<&str>, stderr_dev_ino: Option<(u64, u64)>) -> bool {
+    let (Some(var), Some((dev, ino))) = (journal_stream, stderr_dev_ino) else {
+        return false;
+    };
+    let Some((d, i)) = var.trim().split_once(':') else {
+        return false;
+    };
+    d.parse() == Ok(dev) && i.parse() == Ok(ino)
+}
 
 impl Log for StderrLogger {
     fn enabled(&self, m: &Metadata<'_>) -> bool {
@@ -29,21 +61,54 @@ impl Log for StderrLogger {
             Level::Trace => "TRACE",
         };
         // One write per line so that lines from two threads never interleave.
-        let _ = writeln!(
-            std::io::stderr().lock(),
-            "[{:>9.3}s {level}] {}",
-            t.as_secs_f64(),
-            r.args()
-        );
+        let mut err = std::io::stderr().lock();
+        let _ = if self.journal {
+            writeln!(
+                err,
+                "<{}>[{:>9.3}s {level}] {}",
+                syslog_priority(r.level()),
+                t.as_secs_f64(),
+                r.args()
+            )
+        } else {
+            writeln!(err, "[{:>9.3}s {level}] {}", t.as_secs_f64(), r.args())
+        };
     }
     fn flush(&self) {}
 }
 
 /// Installs the logger (idempotent) at `level`.
 pub fn init(level: LevelFilter) {
-    let logger = LOGGER.get_or_init(|| StderrLogger {
-        start: Instant::now(),
+    let logger = LOGGER.get_or_init(|| {
+        let stat = rustix::fs::fstat(std::io::stderr())
+            .ok()
+            .map(|s| (s.st_dev as u64, s.st_ino as u64));
+        let var = std::env::var("JOURNAL_STREAM").ok();
+        StderrLogger {
+            start: Instant::now(),
+            journal: is_journal_stream(var.as_deref(), stat),
+        }
     });
     let _ = log::set_logger(logger);
     log::set_max_level(level);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_journal_stream_is_recognised_only_as_stderr_itself() {
+        assert!(is_journal_stream(Some("8:12345"), Some((8, 12345))));
+        assert!(is_journal_stream(Some("8:12345\n"), Some((8, 12345))));
+        // Inherited, but stderr was redirected (`stature run 2>log`).
+        assert!(!is_journal_stream(Some("8:12345"), Some((8, 999))));
+        assert!(!is_journal_stream(Some("9:12345"), Some((8, 12345))));
+        assert!(!is_journal_stream(None, Some((8, 12345))));
+        assert!(!is_journal_stream(Some("8:12345"), None));
+        assert!(!is_journal_stream(Some("garbage"), Some((8, 12345))));
+        assert_eq!(syslog_priority(Level::Error), 3);
+        assert_eq!(syslog_priority(Level::Warn), 4);
+        assert_eq!(syslog_priority(Level::Info), 6);
+    }
 }

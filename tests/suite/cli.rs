@@ -1010,3 +1010,53 @@ fn config_check_names_its_option_and_a_camera_this_build_lacks() {
         assert!(err.contains("this build has no V4L2 support"), "{err}");
     }
 }
+
+/// Under systemd (stderr is the journal's stream, named by
+/// `JOURNAL_STREAM`) every log line carries its syslog priority, so that
+/// `journalctl -p err` finds the errors; elsewhere lines are plain.
+#[test]
+fn log_lines_carry_syslog_priorities_when_stderr_is_the_journal() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = common::fresh_dir("cli-log_lines_carry_syslog_priorities");
+    let clip = write_clip(&dir, "j.y4m", 3);
+    let log_path = dir.join("stderr.log");
+    let run_with = |journal: bool, source: &str| {
+        let log = std::fs::File::create(&log_path).unwrap();
+        let meta = log.metadata().unwrap();
+        let mut cmd = Command::new(stature_bin());
+        cmd.args(["run", "--source", source])
+            .stdout(Stdio::null())
+            .stderr(log);
+        if journal {
+            cmd.env("JOURNAL_STREAM", format!("{}:{}", meta.dev(), meta.ino()));
+        } else {
+            // Inherited from a service, but stderr is a file now.
+            cmd.env(
+                "JOURNAL_STREAM",
+                format!("{}:{}", meta.dev(), meta.ino() + 1),
+            );
+        }
+        let status = cmd.status().unwrap();
+        (status.code(), std::fs::read_to_string(&log_path).unwrap())
+    };
+    let good = format!("y4m:{}", clip.display());
+    let (code, text) = run_with(true, &good);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.lines().count() >= 2, "{text}");
+    assert!(
+        text.lines()
+            .all(|l| l.starts_with("<6>[") && l.contains("INFO ]")),
+        "{text}"
+    );
+    let missing = format!("y4m:{}", dir.join("missing.y4m").display());
+    let (code, text) = run_with(true, &missing);
+    assert_eq!(code, Some(3), "{text}");
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("<3>[") && l.contains("ERROR]")),
+        "{text}"
+    );
+    let (code, text) = run_with(false, &good);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.lines().all(|l| l.starts_with('[')), "{text}");
+}
