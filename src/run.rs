@@ -656,28 +656,36 @@ pub fn run_observed(
     };
     let status_every = ((opts.status_interval_s * fps).round() as u64).max(1);
     let alloc_base = (opts.allocations)();
-    let mut last_status = (Instant::now(), 0u64);
+    // When, at which frame count, and at what rate the last status was sent.
+    let mut last_status = (Instant::now(), 0u64, 0.0f64);
     let mut last_wait_status = Instant::now();
-    let status =
-        |p: &Pipeline, state: SourceState, reporter: &mut Reporter, last: &mut (Instant, u64)| {
-            let dt = last.0.elapsed().as_secs_f64();
-            let rate = if dt > 0.0 {
-                (p.frames - last.1) as f64 / dt
-            } else {
-                0.0
-            };
-            *last = (Instant::now(), p.frames);
-            let dropped = reporter.counters().dropped();
-            reporter.send(Record::Status(Status {
-                frame: p.frames,
-                frames: p.frames,
-                fps: rate as f32,
-                dropped,
-                source: record::bounded(state.as_str()),
-                allocations: (opts.allocations)() - alloc_base,
-                tracks: p.tracks(),
-            }));
+    let status = |p: &Pipeline,
+                  state: SourceState,
+                  reporter: &mut Reporter,
+                  last: &mut (Instant, u64, f64)| {
+        let dt = last.0.elapsed().as_secs_f64();
+        let rate = if state == SourceState::Ended && p.frames == last.1 {
+            // The closing status right after a periodic one (a run ending
+            // on the interval): no frames to time, and 0 fps would read as
+            // a stalled pipeline. While a camera is away, 0 is the truth.
+            last.2
+        } else if dt > 0.0 {
+            (p.frames - last.1) as f64 / dt
+        } else {
+            0.0
         };
+        *last = (Instant::now(), p.frames, rate);
+        let dropped = reporter.counters().dropped();
+        reporter.send(Record::Status(Status {
+            frame: p.frames,
+            frames: p.frames,
+            fps: rate as f32,
+            dropped,
+            source: record::bounded(state.as_str()),
+            allocations: (opts.allocations)() - alloc_base,
+            tracks: p.tracks(),
+        }));
+    };
     let mut error = None;
     let stopped_by = loop {
         if opts.stop.load(Ordering::Relaxed) {

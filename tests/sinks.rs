@@ -133,6 +133,17 @@ fn udp_sink_delivers_every_record_in_both_formats() {
             .count();
         // One status per 10 frames (0.4 s at 25 fps) and one at the end.
         assert_eq!(statuses, 7, "{format:?}");
+        // The run ends on the interval: the closing status has no frames of
+        // its own to time and repeats the last rate (it said 0 fps).
+        let rates: Vec<f32> = got
+            .iter()
+            .filter_map(|r| match r {
+                Record::Status(s) => Some(s.fps),
+                _ => None,
+            })
+            .collect();
+        assert!(rates.iter().all(|&r| r > 0.0), "{format:?}: {rates:?}");
+        assert_eq!(rates[5], rates[6], "{format:?}");
         assert!(matches!(got.last(), Some(Record::Bye(b)) if b.frames == 60));
     }
 }
