@@ -1,4 +1,5 @@
 //! The `stature` command: see the README for every option.
+#![deny(unsafe_code)]
 
 use clap::{Args, Parser, Subcommand};
 use stature::config::{Config, ConfigError, Format};
@@ -441,16 +442,39 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
 /// A flag that SIGINT, SIGTERM and SIGHUP set (the loop then stops after
 /// the current frame and sends its final records). SIGHUP is the terminal
 /// going away, e.g. an SSH session dropping during `stature snapshot`:
-/// left at its default it killed the run with nothing final sent.
+/// left at its default it killed the run with nothing final sent. A SIGHUP
+/// the parent ignores (`nohup stature run ...`, a supervisor's choice) stays
+/// ignored: the caller asked for the run to outlive its terminal.
 fn stop_on_signals() -> Arc<AtomicBool> {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     let stop = Arc::new(AtomicBool::new(false));
-    for sig in [SIGINT, SIGTERM, SIGHUP] {
+    let hangup = (!ignored_from_start(SIGHUP)).then_some(SIGHUP);
+    for sig in [Some(SIGINT), Some(SIGTERM), hangup].into_iter().flatten() {
         if let Err(e) = signal_hook::flag::register(sig, stop.clone()) {
             log::warn!("cannot install handler for signal {sig}: {e}");
         }
     }
     stop
+}
+
+/// Whether `sig` is ignored now, before any handler of ours: a disposition
+/// inherited from the parent, as `nohup` sets for SIGHUP. Asked of the
+/// kernel with sigaction(2), not read from /proc/self/status, because under
+/// qemu-user (the emulated test runs) only the emulated call answers for
+/// the guest.
+#[allow(unsafe_code)]
+fn ignored_from_start(sig: libc::c_int) -> bool {
+    let mut current = std::mem::MaybeUninit::<libc::sigaction>::zeroed();
+    // SAFETY: with a null new action sigaction(2) changes nothing and only
+    // writes the current disposition into `current`, a valid writable
+    // struct; all-zero bytes are a valid `sigaction` (integers, a bit mask
+    // and a null handler), so it is initialised whether or not the call
+    // succeeded.
+    let (rc, current) = unsafe {
+        let rc = libc::sigaction(sig, std::ptr::null(), current.as_mut_ptr());
+        (rc, current.assume_init())
+    };
+    rc == 0 && current.sa_sigaction == libc::SIG_IGN
 }
 
 /// What the demo compares with the truth: final calibration and heights.

@@ -618,6 +618,63 @@ fn sighup_stops_cleanly_with_bye() {
     signal_stops_cleanly_with_bye("-HUP");
 }
 
+/// `nohup stature run ...` (SIGHUP ignored by the parent) asked for a run
+/// that outlives its terminal: the hangup is not a stop, the frames after
+/// it are measured, and the run ends at the end of its input.
+#[test]
+fn sighup_ignored_by_the_parent_stays_ignored() {
+    let mut child = Command::new("sh")
+        .args([
+            "-c",
+            "trap '' HUP; exec \"$0\" run --source y4m:- -q",
+            stature_bin(),
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let size = Size {
+        width: 64,
+        height: 48,
+    };
+    let clip = common::synthetic_y4m(size, 8);
+    // The header and the first four frames, then the hangup, then the rest.
+    let frame_bytes = "FRAME\n".len() + 64 * 48 * 3 / 2;
+    let split = clip.len() - 4 * frame_bytes;
+    stdin.write_all(&clip[..split]).unwrap();
+    stdin.flush().unwrap();
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut hello = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut hello).unwrap();
+    assert!(hello.contains("\"hello\""), "{hello}");
+    assert!(Command::new("kill")
+        .args(["-HUP", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    // Time for a stop to take effect, were the hangup taken as one: the
+    // frames written next would then find no reader.
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let _ = stdin.write_all(&clip[split..]);
+    drop(stdin);
+    let status = wait_at_most(&mut child, std::time::Duration::from_secs(120))
+        .expect("the run did not end at the end of its input");
+    let mut rest = hello.into_bytes();
+    std::io::Read::read_to_end(&mut stdout, &mut rest).unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(status.success(), "{status:?}: {err}");
+    let recs = records(&rest);
+    let bye = recs.last().unwrap();
+    assert_eq!(bye["type"], "bye", "{err}");
+    assert_eq!(
+        bye["frames"], 8,
+        "SIGHUP stopped a run started under nohup: {err}"
+    );
+}
+
 #[test]
 fn run_snapshot_flag_writes_the_final_calibration_over_the_last_frame() {
     let dir =
