@@ -7,10 +7,12 @@
 # other sinks, e.g. a UART, stay), the unit to /etc/systemd/system, the
 # config's [board] caps into a unit drop-in; creates the `stature` system
 # user in groups video and dialout; enables and starts the service.
-# Run it again to upgrade: an existing /etc/stature/stature.toml (your edits,
-# an MQTT password) is kept, the profile goes beside it as stature.toml.dist
-# unless --replace-config. The config is root:stature, mode 0640: the
-# service reads it, other users do not (it may hold a broker password).
+# Run it again to upgrade: an /etc/stature/stature.toml you edited (an MQTT
+# password, other sinks) is kept and the new profile goes beside it as
+# stature.toml.dist; one left as installed is replaced by the new profile.
+# --replace-config replaces it anyway, the old one saved as stature.toml.old.
+# The config is root:stature, mode 0640: the service reads it, other users
+# do not (it may hold a broker password).
 # POSIX sh and busybox-compatible; DESTDIR=/some/root installs into a tree.
 set -eu
 
@@ -30,13 +32,16 @@ while [ $# -gt 0 ]; do
         --binary) binary=$2; shift 2 ;;
         --report)
             # A TOML basic string: a quote or backslash would end or escape it.
+            # A TOML basic string holds no control characters (a newline
+            # would end it mid-line and the service would refuse the file).
             case "${2-}" in
-                "" | *\"* | *\\*) echo "install.sh: --report needs a sink URI without quotes or backslashes" >&2; exit 2 ;;
+                "" | *\"* | *\\* | *[[:cntrl:]]*)
+                    echo "install.sh: --report needs a sink URI without quotes, backslashes or control characters" >&2; exit 2 ;;
             esac
             reports="$reports${reports:+, }\"$2\""; shift 2 ;;
         --replace-config) replace_config=1; shift ;;
         --no-systemd) systemd=0; shift ;;
-        -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
         *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -112,7 +117,10 @@ fi
 # Root-owned, readable by the service's group only. Numeric ids: under
 # DESTDIR the tree's group file counts, not this machine's.
 protect() {
-    chmod 0640 "$1"
+    chmod 0640 "$1" || [ -n "$D" ] || {
+        echo "install.sh: cannot make $1 mode 0640 (run as root)" >&2
+        exit 1
+    }
     gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
     chown "0:$gid" "$1" 2>/dev/null || [ -n "$D" ] || {
         echo "install.sh: cannot give $1 to group stature (run as root)" >&2
@@ -120,25 +128,43 @@ protect() {
     }
 }
 protect "$conf.new"
+# stature.toml.dist is the profile as this script last wrote it: a config
+# equal to it was not edited, and an upgrade may replace it.
+edited=0
+if [ -f "$conf" ] && ! cmp -s "$conf" "$conf.new" && ! { [ -f "$conf.dist" ] && cmp -s "$conf" "$conf.dist"; }; then
+    edited=1
+fi
+keep=0
+[ "$edited" = 1 ] && [ "$replace_config" = 0 ] && keep=1
 # The config the service will read, checked by the new binary before
 # anything is replaced (when it runs here, i.e. not into a DESTDIR tree).
-keep=0
-if [ -f "$conf" ] && [ "$replace_config" = 0 ] && ! cmp -s "$conf" "$conf.new"; then
-    keep=1
-fi
 if [ -z "$D" ]; then
     if [ "$keep" = 1 ]; then checked=$conf; else checked=$conf.new; fi
     "$binary" config --check "$checked" || {
-        rm -f "$conf.new"
-        echo "install.sh: $checked is refused by the new binary; the binary and the config were left as they were" >&2
+        if [ "$keep" = 1 ]; then
+            # What to merge the edits into is needed now more than ever.
+            mv -f "$conf.new" "$conf.dist"
+            echo "install.sh: your $checked is refused by the new binary (the new profile is in $conf.dist); the binary and the config were left as they were" >&2
+        else
+            rm -f "$conf.new"
+            echo "install.sh: $checked is refused by the new binary; the binary and the config were left as they were" >&2
+        fi
         exit 2
     }
 fi
 if [ "$keep" = 1 ]; then
     mv -f "$conf.new" "$conf.dist"
-    protect "$conf"
-    echo "install.sh: kept your $conf; the profile (and any --report) is in $conf.dist (compare them; --replace-config installs it)"
+    # A symlink points at a file managed elsewhere: its owner sets its mode.
+    [ -L "$conf" ] || protect "$conf"
+    echo "install.sh: kept your edited $conf; the new profile (and any --report) is in $conf.dist (compare them; --replace-config installs it)"
 else
+    if [ "$edited" = 1 ]; then
+        cp -p "$conf" "$conf.old"
+        echo "install.sh: replaced your edited $conf (--replace-config); it is saved as $conf.old"
+    elif [ -f "$conf" ] && ! cmp -s "$conf" "$conf.new"; then
+        echo "install.sh: $conf was as last installed (not edited): replaced by the new profile"
+    fi
+    cp -p "$conf.new" "$conf.dist"
     mv -f "$conf.new" "$conf"
 fi
 # Copy then rename: replacing a running binary in place would fail (ETXTBSY).
@@ -147,7 +173,7 @@ chmod 0755 "$D/usr/local/bin/.stature.new"
 mv -f "$D/usr/local/bin/.stature.new" "$D/usr/local/bin/stature"
 cp "$here/stature.service" "$D/etc/systemd/system/stature.service"
 chmod 0644 "$D/etc/systemd/system/stature.service"
-# Board caps from the profile's [board] section -> systemd resource control.
+# Board caps from the config's [board] section -> systemd resource control.
 board_value() {
     sed -n '/^\[board\]/,/^\[/ s/^'"$1"' *= *\([0-9]*\).*/\1/p' "$conf" | head -1
 }

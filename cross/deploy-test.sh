@@ -374,6 +374,7 @@ hellos=$(records n hello)
 (cd "$repo" && export -f ssh scp && export run && bash -eo pipefail "$run/zero2-steps34.sh") \
     >"$run/zero2-steps34.log" 2>&1 || { cat "$run/zero2-steps34.log"; die "README steps 3-4 (Pi Zero 2) failed"; }
 sed 's/^/    | /' "$run/zero2-steps34.log"
+check "Zero 2 profile: the unedited Pi 4 config is replaced by the upgrade" grep -q "was as last installed" "$run/zero2-steps34.log"
 check "Zero 2 profile: a new hello over UDP" wait_for 120 records count hello $((hellos + 1))
 check "Zero 2 profile: 640x480 YUYV ($(records last hello))" records hello-mode 640 480 YUYV
 musl_sum=$(sha256sum "$target_dir/$zero2_target/release/stature" | cut -c1-64)

@@ -192,10 +192,11 @@ fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
 }
 
 /// `board/install.sh` into a scratch tree (`DESTDIR`), as an installer
-/// runs it twice: the first time with a sink URI holding `&` (which sed
-/// once turned into the matched text), the second time to upgrade, after
-/// editing the config (which the upgrade once replaced, credentials and
-/// sinks lost, and left world-readable).
+/// runs it: the first time with a sink URI holding `&` (which sed once
+/// turned into the matched text), then to upgrade after editing the config
+/// (which the upgrade once replaced, credentials and sinks lost, and left
+/// world-readable), with `--replace-config`, and with another board's
+/// profile over a config nobody edited (replaced without being asked).
 #[test]
 fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config() {
     use std::os::unix::fs::PermissionsExt;
@@ -210,7 +211,7 @@ fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config()
     let install = |extra: &[&str]| {
         let out = std::process::Command::new("sh")
             .arg(board_dir().join("install.sh"))
-            .args(["--profile", "rpi4-aarch64.toml", "--no-systemd", "--binary"])
+            .args(["--no-systemd", "--binary"])
             .arg(&binary)
             .args(extra)
             .env("DESTDIR", &*root)
@@ -225,7 +226,14 @@ fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config()
     };
     let conf = root.join("etc/stature/stature.toml");
     let mqtt = "mqtt:broker.lan?topic=stature/entrance&qos=1";
-    let (code, log) = install(&["--report", mqtt, "--report", "udp:10.0.0.5:9000"]);
+    let rpi4 = ["--profile", "rpi4-aarch64.toml"];
+    let (code, log) = install(
+        &[
+            &rpi4[..],
+            &["--report", mqtt, "--report", "udp:10.0.0.5:9000"],
+        ]
+        .concat(),
+    );
     assert_eq!(code, Some(0), "{log}");
     let cfg = Config::load(&conf, "--config").unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(cfg.report.sinks[..2], [mqtt, "udp:10.0.0.5:9000"]);
@@ -244,7 +252,7 @@ fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config()
     edited.push_str("\n[report.mqtt]\nusername = \"stature\"\npassword = \"change-me\"\n");
     std::fs::write(&conf, &edited).unwrap();
     std::fs::set_permissions(&conf, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let (code, log) = install(&[]);
+    let (code, log) = install(&rpi4);
     assert_eq!(code, Some(0), "{log}");
     assert_eq!(std::fs::read_to_string(&conf).unwrap(), edited, "kept");
     assert!(
@@ -260,16 +268,35 @@ fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config()
     assert!(std::fs::read_to_string(&dist)
         .unwrap()
         .contains("\"udp:127.0.0.1:9000\""));
-    // Asked for: the profile replaces it.
-    let (code, log) = install(&["--replace-config"]);
+    // Asked for: the profile replaces it, the edited one is kept aside.
+    let (code, log) = install(&[&rpi4[..], &["--replace-config"]].concat());
     assert_eq!(code, Some(0), "{log}");
     assert!(!std::fs::read_to_string(&conf).unwrap().contains("password"));
+    let old = root.join("etc/stature/stature.toml.old");
+    assert_eq!(std::fs::read_to_string(&old).unwrap(), edited, "{log}");
+    assert_eq!(mode(&old), 0o640, "as private as the config was");
 
-    // A value TOML cannot hold as written, and a missing value.
-    let (code, log) = install(&["--report", "udp:a\"b:1"]);
-    assert_eq!(code, Some(2), "{log}");
-    assert!(log.contains("without quotes or backslashes"), "{log}");
-    let (code, log) = install(&["--report"]);
+    // Left as installed, the config is the profile's to change: another
+    // board's profile replaces it on the next run, with no option needed.
+    let (code, log) = install(&["--profile", "rpi-zero2.toml"]);
+    assert_eq!(code, Some(0), "{log}");
+    assert!(log.contains("was as last installed"), "{log}");
+    assert_eq!(
+        std::fs::read_to_string(&conf).unwrap(),
+        std::fs::read_to_string(board_dir().join("rpi-zero2.toml")).unwrap()
+    );
+    assert_eq!(mode(&conf), 0o640);
+
+    // Values TOML cannot hold as written, and a missing value.
+    for bad in ["udp:a\"b:1", "udp:a\\b:1", "udp:10.0.0.5:9000\nsinks = []"] {
+        let (code, log) = install(&[&rpi4[..], &["--report", bad]].concat());
+        assert_eq!(code, Some(2), "{bad:?}: {log}");
+        assert!(
+            log.contains("without quotes, backslashes or control characters"),
+            "{bad:?}: {log}"
+        );
+    }
+    let (code, log) = install(&[&rpi4[..], &["--report"]].concat());
     assert_eq!(code, Some(2), "{log}");
     assert!(log.contains("--report needs a value"), "{log}");
 }
