@@ -212,7 +212,8 @@ pub struct BoardConfig {
 
 impl ReportConfig {
     /// Every sink parsed, in order; refuses a sink that does not parse, a
-    /// sink given twice, and two `mqtt:` sinks with one client id.
+    /// stdout, file, UDP or serial sink given twice, and two `mqtt:` sinks
+    /// with one client id.
     pub fn sink_specs(&self) -> Result<Vec<crate::report::sink::SinkSpec>, ConfigError> {
         use crate::report::sink::{redacted, SinkSpec};
         let specs = self
@@ -222,7 +223,7 @@ impl ReportConfig {
                 SinkSpec::parse(s).map_err(|e| ConfigError::invalid("report.sinks", redacted(s), e))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        // The same stdout, file or address twice: every record would reach
+        // The same stdout, file, UDP address or serial port twice: every record would reach
         // the consumer twice. (Two identical mqtt: sinks share a client id,
         // refused below with the fix to write.)
         for (i, spec) in specs.iter().enumerate() {

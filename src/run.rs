@@ -664,10 +664,15 @@ pub fn run_observed(
                   reporter: &mut Reporter,
                   last: &mut (Instant, u64, f64)| {
         let dt = last.0.elapsed().as_secs_f64();
-        let rate = if state == SourceState::Ended && p.frames == last.1 {
+        let rate = if state == SourceState::Ended
+            && p.frames == last.1
+            && dt < opts.status_interval_s.max(1.0)
+        {
             // The closing status right after a periodic one (a run ending
             // on the interval): no frames to time, and 0 fps would read as
-            // a stalled pipeline. While a camera is away, 0 is the truth.
+            // a stalled pipeline. After a longer silence (a stalled source,
+            // then its end) or while a camera is away, 0 is the truth. (At
+            // least a second: the end-of-run work falls in `dt` too.)
             last.2
         } else if dt > 0.0 {
             (p.frames - last.1) as f64 / dt
