@@ -80,6 +80,9 @@ impl Log for StderrLogger {
 /// Installs the logger (idempotent) at `level`.
 pub fn init(level: LevelFilter) {
     let logger = LOGGER.get_or_init(|| {
+        // The field types differ between targets (32-bit ARM, musl): the
+        // casts are no-ops only on some of them.
+        #[allow(clippy::unnecessary_cast)]
         let stat = rustix::fs::fstat(std::io::stderr())
             .ok()
             .map(|s| (s.st_dev as u64, s.st_ino as u64));
