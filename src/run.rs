@@ -148,11 +148,7 @@ impl Pipeline {
             pending_lost: 0,
             pending_measured: 0,
             ready_since: None,
-            fps: if info.fps_f64() > 0.0 {
-                info.fps_f64()
-            } else {
-                25.0
-            },
+            fps: stream_fps(info),
             calibration: None,
             final_heights: Vec::with_capacity(FINAL_HEIGHTS_KEPT),
             frames: 0,
@@ -162,7 +158,7 @@ impl Pipeline {
     /// The calibrator, resumed from the state file when there is a usable one.
     fn calibrator(cfg: &Config, info: &SourceInfo) -> Calibrator {
         let mut c = Calibrator::new(&cfg.calibrate, info.size.width, info.size.height);
-        c.set_fps(info.fps_f64());
+        c.set_fps(stream_fps(info));
         if !cfg.run.state.is_empty() {
             let k = cfg.calibrate.tracks * cfg.calibrate.anchors_per_track;
             // About 110 bytes of JSON per anchor.
@@ -398,6 +394,17 @@ impl Pipeline {
     /// People tracked now.
     pub fn tracks(&self) -> u32 {
         self.tracker.live()
+    }
+}
+
+/// The stream's frame rate, 25 when the source could not say (a V4L2
+/// driver that reports no frame interval): track ages and the status
+/// cadence are counted in frames of stream time and need one.
+fn stream_fps(info: &SourceInfo) -> f64 {
+    if info.fps_f64() > 0.0 {
+        info.fps_f64()
+    } else {
+        25.0
     }
 }
 
@@ -649,11 +656,7 @@ pub fn run_observed(
     }));
     // Status cadence in frames of stream time (deterministic for recorded input);
     // while a camera is away, wall time drives it instead.
-    let fps = if info.fps_f64() > 0.0 {
-        info.fps_f64()
-    } else {
-        25.0
-    };
+    let fps = stream_fps(&info);
     let status_every = ((opts.status_interval_s * fps).round() as u64).max(1);
     let alloc_base = (opts.allocations)();
     // When, at which frame count, and at what rate the last status was sent.

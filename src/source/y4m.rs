@@ -17,6 +17,14 @@ use std::time::Duration;
 const MAX_LINE: usize = 4096;
 /// Largest frame dimension accepted (keeps buffer sizes sane on bad input).
 const MAX_DIM: usize = 16384;
+/// Frame rates accepted from the `F` tag, frames per second. Track ages,
+/// status cadence and the state-file interval are counted in stream time,
+/// so a rate far outside what a camera records (`F4294967295:1` would mean
+/// no status record ever; `F1:4294967295` one per frame) is a broken header.
+const FPS_RANGE: (f64, f64) = (0.1, 1000.0);
+/// Assumed when the header has no `F` tag (the rate of PAL and most
+/// surveillance recordings); logged at open.
+pub const DEFAULT_FPS: (u32, u32) = (25, 1);
 
 /// Chroma layout of the stream.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,16 +90,33 @@ impl Header {
         }
         let (mut w, mut h, mut fps, mut chroma, mut interlace) =
             (None, None, (0, 0), Chroma::C420, None);
+        let mut seen = String::new();
         for tag in parts {
             // The key is one character; not always one byte (`X` tags may carry UTF-8).
             let (key, val) = tag.split_at(tag.chars().next().map_or(0, char::len_utf8));
+            // Two `W` (or `F`, `C`...) tags leave the frame layout to
+            // whichever the reader happens to keep; `X` may repeat.
+            if key != "X" {
+                if seen.contains(key) {
+                    return Err(format!("header tag `{key}` given twice"));
+                }
+                seen.push_str(key);
+            }
             match key {
                 "W" => w = Some(parse_dim(val, "width")?),
                 "H" => h = Some(parse_dim(val, "height")?),
                 "F" => {
                     fps = parse_ratio(val)
-                        .filter(|&(n, d)| n > 0 && d > 0)
-                        .ok_or_else(|| format!("bad frame rate tag `F{val}` (expected N:D, both above 0)"))?
+                        .filter(|&(n, d)| {
+                            let rate = f64::from(n) / f64::from(d);
+                            d > 0 && (FPS_RANGE.0..=FPS_RANGE.1).contains(&rate)
+                        })
+                        .ok_or_else(|| {
+                            format!(
+                                "bad frame rate tag `F{val}` (expected N:D, a rate of {} to {} fps)",
+                                FPS_RANGE.0, FPS_RANGE.1
+                            )
+                        })?
                 }
                 "A" => {
                     parse_ratio(val).ok_or_else(|| format!("bad aspect tag `A{val}`"))?;
@@ -306,7 +331,11 @@ impl Y4mSource {
         let info = SourceInfo {
             size: header.size,
             fps: if header.fps.1 == 0 {
-                (0, 1)
+                log::warn!(
+                    "{name}: no frame rate tag (F) in the Y4M header; assuming {} fps",
+                    DEFAULT_FPS.0
+                );
+                DEFAULT_FPS
             } else {
                 header.fps
             },
@@ -532,6 +561,19 @@ mod tests {
     }
 
     #[test]
+    fn frame_rates_in_range_are_kept_and_a_missing_one_is_assumed() {
+        for (tag, want) in [
+            (" F30000:1001", (30000, 1001)),
+            (" F1:10", (1, 10)),
+            ("", DEFAULT_FPS),
+        ] {
+            let h = format!("YUV4MPEG2 W2 H2{tag}\n");
+            let s = source(stream(&h, &[vec![0; 6]])).unwrap();
+            assert_eq!(s.info().fps, want, "{h:?}");
+        }
+    }
+
+    #[test]
     fn reads_444_and_mono_as_420() {
         let mut p = vec![50u8; 4];
         p.extend([10, 20, 30, 40]); // U: averages to 25
@@ -607,6 +649,11 @@ mod tests {
             ("YUV4MPEG2 W4 H2 Fx\n", "frame rate"),
             ("YUV4MPEG2 W4 H2 F0:0\n", "frame rate"),
             ("YUV4MPEG2 W4 H2 F25:0\n", "frame rate"),
+            ("YUV4MPEG2 W4 H2 F4294967295:1\n", "0.1 to 1000 fps"),
+            ("YUV4MPEG2 W4 H2 F1:4294967295\n", "0.1 to 1000 fps"),
+            ("YUV4MPEG2 W4 H2 F1:11\n", "frame rate"),
+            ("YUV4MPEG2 W4 H2 W8\n", "`W` given twice"),
+            ("YUV4MPEG2 W4 H2 F25:1 C420 F30:1\n", "`F` given twice"),
             ("YUV4MPEG2 W4 H2 C420jpeg\r\n", "CR LF"),
             ("YUV4MPEG2 W4 H2 Q1\n", "unknown header tag"),
             ("YUV4MPEG2 W4 H2", "not terminated"),
