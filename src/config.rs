@@ -226,8 +226,9 @@ impl ReportConfig {
         // The same stdout, file, UDP address or serial port twice: every record would reach
         // the consumer twice. (Two identical mqtt: sinks share a client id,
         // refused below with the fix to write.)
-        for (i, spec) in specs.iter().enumerate() {
-            if !matches!(spec, SinkSpec::Mqtt(_)) && specs[..i].contains(spec) {
+        let destinations: Vec<_> = specs.iter().map(destination).collect();
+        for (i, d) in destinations.iter().enumerate() {
+            if d.is_some() && destinations[..i].contains(d) {
                 return Err(ConfigError::invalid(
                     "report.sinks",
                     redacted(&self.sinks[i]),
@@ -251,6 +252,37 @@ impl ReportConfig {
                 .map_err(|e| ConfigError::invalid("report.sinks", s, e))?;
         }
         Ok(specs)
+    }
+}
+
+/// Where a sink writes, for the duplicate check: file and serial paths as
+/// the file system resolves them (`a.jsonl`, `./a.jsonl` and a symlink to
+/// it are one file; a file not created yet is resolved through its
+/// directory), a serial port whatever its baud rate. `None` for MQTT.
+/// (A resolved path starts with `/`, so it never equals `stdout` or a
+/// `udp:` key.)
+fn destination(spec: &crate::report::sink::SinkSpec) -> Option<String> {
+    use crate::report::sink::SinkSpec;
+    use std::path::Path;
+    let resolved = |path: &str| {
+        let p = Path::new(path);
+        std::fs::canonicalize(p)
+            .or_else(|_| {
+                let dir = match p.parent() {
+                    Some(d) if !d.as_os_str().is_empty() => d,
+                    _ => Path::new("."),
+                };
+                Ok::<_, std::io::Error>(
+                    std::fs::canonicalize(dir)?.join(p.file_name().unwrap_or_default()),
+                )
+            })
+            .map_or_else(|_| path.to_string(), |p| p.display().to_string())
+    };
+    match spec {
+        SinkSpec::Stdout => Some("stdout".into()),
+        SinkSpec::File(path) | SinkSpec::Serial { path, .. } => Some(resolved(path)),
+        SinkSpec::Udp(addr) => Some(format!("udp:{addr}")),
+        SinkSpec::Mqtt(_) => None,
     }
 }
 
@@ -408,6 +440,48 @@ mod tests {
             ),
             "{e}"
         );
+    }
+
+    #[test]
+    fn one_file_or_port_under_two_spellings_is_one_sink() {
+        let dir = std::env::temp_dir().join(format!("stature-dup-sinks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("a.jsonl");
+        std::fs::write(&file, "").unwrap();
+        let link = dir.join("link.jsonl");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&file, &link).unwrap();
+        let d = dir.display();
+        let sinks = |a: String, b: String| ReportConfig {
+            sinks: vec![a, b],
+            ..ReportConfig::default()
+        };
+        for (a, b) in [
+            (format!("file:{d}/a.jsonl"), format!("file:{d}/./a.jsonl")),
+            (format!("file:{d}/a.jsonl"), format!("file:{d}/link.jsonl")),
+            // Not created yet: resolved through its directory.
+            (
+                format!("file:{d}/new.jsonl"),
+                format!(
+                    "file:{d}/../{}/new.jsonl",
+                    dir.file_name().unwrap().to_string_lossy()
+                ),
+            ),
+            (
+                format!("serial:{d}/a.jsonl?baud=9600"),
+                format!("serial:{d}/link.jsonl?baud=115200"),
+            ),
+            (
+                format!("file:{d}/a.jsonl"),
+                format!("serial:{d}/a.jsonl?baud=9600"),
+            ),
+        ] {
+            let e = sinks(a.clone(), b.clone()).sink_specs().expect_err(&b);
+            assert!(e.to_string().contains("given twice"), "{a} {b}: {e}");
+        }
+        let (a, b) = (format!("file:{d}/a.jsonl"), format!("file:{d}/b.jsonl"));
+        assert!(sinks(a, b).sink_specs().is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
