@@ -307,6 +307,10 @@ impl BoardConfig {
     }
 }
 
+/// The largest config file read: the documented defaults are a few KiB,
+/// so anything this large is a mistyped path (a video, `/dev/zero`).
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
 impl Config {
     /// Parses TOML text; unknown keys and bad types are errors.
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
@@ -317,15 +321,22 @@ impl Config {
 
     /// Reads and parses a TOML file; `option` is the command-line option
     /// that named it (`--config`, `--check`), which an unreadable file's
-    /// error names.
+    /// error names. A file over [`MAX_CONFIG_BYTES`] is refused unread.
     pub fn load(path: &Path, option: &str) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
+        let refused = |e: &dyn fmt::Display| {
             ConfigError::new(
                 option,
                 path.display(),
                 format_args!("a readable TOML file ({e})"),
             )
+        };
+        let bytes = crate::replace::read_capped(path, MAX_CONFIG_BYTES).map_err(|e| match e {
+            crate::replace::ReadError::TooLarge { .. } => {
+                refused(&format_args!("{e}, too large to be a config file"))
+            }
+            e => refused(&e),
         })?;
+        let text = String::from_utf8(bytes).map_err(|_| refused(&"not UTF-8 text"))?;
         Self::from_toml(&text).map_err(|mut e| {
             if e.key == "(file)" {
                 e.key = format!("(file) {}", path.display());

@@ -1,5 +1,5 @@
 //! Files the product replaces whole (the calibration state, the installer
-//! snapshot): written to `PATH.stature-tmp` beside the target and renamed
+//! snapshot, the trained weights and their report): written to `PATH.stature-tmp` beside the target and renamed
 //! over it, so that a reader or a power cut sees the old file or the new
 //! one. The suffix is the product's own: `PATH.tmp` may be someone's file
 //! (`--state notes` must not truncate `notes.tmp`).
@@ -9,6 +9,9 @@
 //! on persistent storage expects that file to be updated, not the link to
 //! become a copy) and anything that is not a regular file (`/dev/null`, a
 //! FIFO, a device). [`target`] follows links and refuses the rest.
+//!
+//! The files the product reads whole (state, config, weights) are read
+//! with [`read_capped`], never past a size no valid file reaches.
 
 use std::io;
 use std::path::{Path, PathBuf};
@@ -56,6 +59,110 @@ pub fn tmp_beside(path: &Path) -> PathBuf {
     PathBuf::from(tmp)
 }
 
+/// Checks now, before any work whose result goes to `path`, that the file
+/// can be replaced later: [`target`] is resolved and `PATH.stature-tmp` is
+/// created and removed beside it (a missing or read-only directory, a full
+/// inode table). Returns the target. The error names the path that failed.
+pub fn probe(path: &Path) -> io::Result<PathBuf> {
+    let target = target(path)?;
+    if target.file_name().is_none() {
+        return Err(io::Error::other("not a file name"));
+    }
+    let tmp = tmp_beside(&target);
+    std::fs::File::create(&tmp)
+        .map_err(|e| io::Error::new(e.kind(), format!("cannot create {}: {e}", tmp.display())))?;
+    let _ = std::fs::remove_file(&tmp);
+    Ok(target)
+}
+
+/// The new content of a file, written and synced to `PATH.stature-tmp`
+/// but not yet in place: [`Staged::commit`] renames it over the path.
+/// Staging every output of a command first means a failure writing one
+/// leaves all of them as they were. Dropped uncommitted, the temporary
+/// file is removed.
+#[derive(Debug)]
+pub struct Staged {
+    path: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+impl Staged {
+    /// Writes `bytes` beside `path` (through a symbolic link, like [`target`]).
+    pub fn write(path: &Path, bytes: &[u8]) -> io::Result<Staged> {
+        use std::io::Write;
+        let path = target(path)?;
+        let staged = Staged {
+            tmp: tmp_beside(&path),
+            path,
+            committed: false,
+        };
+        let mut f = std::fs::File::create(&staged.tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        Ok(staged)
+    }
+
+    /// Moves the new content into place.
+    pub fn commit(mut self) -> io::Result<()> {
+        std::fs::rename(&self.tmp, &self.path)?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Why [`read_capped`] returned nothing.
+#[derive(Debug)]
+pub enum ReadError {
+    /// Opening or reading failed.
+    Io(io::Error),
+    /// The file holds more than the cap (it was not read past it).
+    TooLarge {
+        /// The cap, bytes.
+        cap: u64,
+    },
+}
+
+impl core::fmt::Display for ReadError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ReadError::Io(e) => write!(f, "{e}"),
+            ReadError::TooLarge { cap } if cap % (1 << 20) == 0 => {
+                write!(f, "larger than {} MiB", cap >> 20)
+            }
+            ReadError::TooLarge { cap } if cap % (1 << 10) == 0 => {
+                write!(f, "larger than {} KiB", cap >> 10)
+            }
+            ReadError::TooLarge { cap } => write!(f, "larger than {cap} bytes"),
+        }
+    }
+}
+
+/// Reads a whole file the product bounds in size (state, config, weights):
+/// at most `cap` bytes, so a mistyped path naming a video, a device such
+/// as `/dev/zero` or a huge file costs one read of `cap + 1` bytes instead
+/// of all the memory there is.
+pub fn read_capped(path: &Path, cap: u64) -> Result<Vec<u8>, ReadError> {
+    use std::io::Read;
+    let f = std::fs::File::open(path).map_err(ReadError::Io)?;
+    let mut bytes = Vec::new();
+    f.take(cap + 1)
+        .read_to_end(&mut bytes)
+        .map_err(ReadError::Io)?;
+    if bytes.len() as u64 > cap {
+        return Err(ReadError::TooLarge { cap });
+    }
+    Ok(bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -91,6 +198,49 @@ mod tests {
         std::os::unix::fs::symlink(d.join("loop_b"), d.join("loop_a")).unwrap();
         std::os::unix::fs::symlink(d.join("loop_a"), d.join("loop_b")).unwrap();
         assert!(target(&d.join("loop_a")).is_err());
+    }
+
+    #[test]
+    fn staged_content_replaces_the_file_only_when_committed() {
+        let d = scratch("staged");
+        let f = d.join("w.bin");
+        std::fs::write(&f, b"old").unwrap();
+        drop(Staged::write(&f, b"new").unwrap());
+        assert_eq!(std::fs::read(&f).unwrap(), b"old");
+        assert!(
+            !tmp_beside(&f).exists(),
+            "an uncommitted stage leaves no file"
+        );
+        Staged::write(&f, b"new").unwrap().commit().unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), b"new");
+        assert!(!tmp_beside(&f).exists());
+    }
+
+    #[test]
+    fn probe_names_the_file_it_could_not_create() {
+        let d = scratch("probe");
+        assert_eq!(probe(&d.join("a")).unwrap(), d.join("a"));
+        assert!(!tmp_beside(&d.join("a")).exists());
+        let e = probe(&d.join("missing/a")).unwrap_err();
+        assert!(e.to_string().contains("missing/a.stature-tmp"), "{e}");
+    }
+
+    #[test]
+    fn capped_reads_stop_past_the_cap() {
+        let d = scratch("capped");
+        let f = d.join("c");
+        std::fs::write(&f, [7u8; 100]).unwrap();
+        assert_eq!(read_capped(&f, 100).unwrap().len(), 100);
+        let e = read_capped(&f, 99).unwrap_err();
+        assert!(matches!(e, ReadError::TooLarge { cap: 99 }), "{e}");
+        assert_eq!(e.to_string(), "larger than 99 bytes");
+        #[cfg(unix)]
+        assert_eq!(
+            read_capped(Path::new("/dev/zero"), 1 << 20)
+                .unwrap_err()
+                .to_string(),
+            "larger than 1 MiB"
+        );
     }
 
     #[cfg(unix)]

@@ -136,16 +136,8 @@ impl StateFile {
     /// to is the one replaced), anything but a regular file is refused, and
     /// `PATH.stature-tmp` is created and removed in the target's directory.
     pub fn open(path: &Path, capacity: usize) -> Result<Self, StateError> {
-        let target = crate::replace::target(path).map_err(StateError::Io)?;
-        let file = StateFile::new(&target, capacity);
-        File::create(&file.tmp).map_err(|e| {
-            StateError::Io(std::io::Error::new(
-                e.kind(),
-                format!("cannot create {}: {e}", file.tmp.display()),
-            ))
-        })?;
-        let _ = std::fs::remove_file(&file.tmp);
-        Ok(file)
+        let target = crate::replace::probe(path).map_err(StateError::Io)?;
+        Ok(StateFile::new(&target, capacity))
     }
 
     /// Moves a file that cannot be resumed from out of the way, so that the
@@ -191,23 +183,17 @@ impl StateFile {
     /// than any state file ([`MAX_STATE_BYTES`]) is not read at all: a
     /// mistyped path may name a video.
     pub fn load(&self) -> Result<Option<Saved>, StateError> {
-        let mut text = Vec::new();
-        match File::open(&self.path) {
-            Ok(f) => {
-                use std::io::Read;
-                f.take(MAX_STATE_BYTES + 1)
-                    .read_to_end(&mut text)
-                    .map_err(StateError::Io)?;
+        use crate::replace::{read_capped, ReadError};
+        let text = match read_capped(&self.path, MAX_STATE_BYTES) {
+            Ok(t) => t,
+            Err(ReadError::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(ReadError::Io(e)) => return Err(StateError::Io(e)),
+            Err(e @ ReadError::TooLarge { .. }) => {
+                return Err(StateError::Corrupt(format!(
+                    "{e}, too large to be a state file"
+                )))
             }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => return Err(StateError::Io(e)),
-        }
-        if text.len() as u64 > MAX_STATE_BYTES {
-            return Err(StateError::Corrupt(format!(
-                "larger than {} MiB, too large to be a state file",
-                MAX_STATE_BYTES >> 20
-            )));
-        }
+        };
         parse_state(&text).map(Some)
     }
 

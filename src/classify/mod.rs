@@ -74,7 +74,8 @@ impl ClassifyConfig {
         Ok(())
     }
 
-    /// Reads and checks the configured weights.
+    /// Reads and checks the configured weights (a file over
+    /// [`svm::MAX_BLOB_BYTES`] is refused unread).
     pub fn load_model(&self) -> Result<Model, ClassifyError> {
         if self.weights.is_empty() {
             Model::from_bytes(BUILTIN_WEIGHTS).map_err(|error| ClassifyError::Weights {
@@ -82,10 +83,16 @@ impl ClassifyConfig {
                 error,
             })
         } else {
-            let bytes = std::fs::read(&self.weights).map_err(|e| ClassifyError::Read {
-                path: self.weights.clone(),
-                error: e.to_string(),
-            })?;
+            let bytes = crate::replace::read_capped(self.weights.as_ref(), svm::MAX_BLOB_BYTES)
+                .map_err(|e| ClassifyError::Read {
+                    path: self.weights.clone(),
+                    error: match e {
+                        crate::replace::ReadError::TooLarge { .. } => {
+                            format!("{e}, too large to be a weight blob")
+                        }
+                        e => e.to_string(),
+                    },
+                })?;
             Model::from_bytes(&bytes).map_err(|error| ClassifyError::Weights {
                 what: format!("weights file `{}`", self.weights),
                 error,

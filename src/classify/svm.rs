@@ -52,6 +52,15 @@ pub const HEADER_LEN: usize = 60;
 pub const MAX_DIM: usize = 65_000;
 /// Weight type code for signed 8-bit weights.
 pub const WEIGHT_I8: u8 = 1;
+/// The largest blob the format can describe: the header, both selection
+/// bitmaps at their `u16` grid counts, [`MAX_DIM`] weights and the CRC
+/// (about 80 KB; the shipped weights are a few KB).
+pub const MAX_VALID_BLOB_BYTES: usize =
+    HEADER_LEN + 2 * (u16::MAX as usize).div_ceil(8) + MAX_DIM + 4;
+/// The largest file read as a weight blob: [`MAX_VALID_BLOB_BYTES`] with
+/// room for a later format version, far below a mistyped path's video or
+/// `/dev/zero`, which are refused after this many bytes.
+pub const MAX_BLOB_BYTES: u64 = 256 << 10;
 
 /// Why a weight blob was refused.
 #[derive(Clone, Debug, PartialEq)]
@@ -368,6 +377,12 @@ mod tests {
             .map(|i| ((i * 37 % 101) as f32 - 50.0) / 50.0)
             .collect();
         Model::quantise(l, &w, -0.25)
+    }
+
+    #[test]
+    fn the_read_cap_holds_any_valid_blob() {
+        assert!((MAX_VALID_BLOB_BYTES as u64) < MAX_BLOB_BYTES);
+        assert!(model().to_bytes().len() <= MAX_VALID_BLOB_BYTES);
     }
 
     #[test]

@@ -1117,3 +1117,19 @@ fn log_lines_carry_syslog_priorities_when_stderr_is_the_journal() {
     assert_eq!(code, Some(0), "{text}");
     assert!(text.lines().all(|l| l.starts_with('[')), "{text}");
 }
+
+/// Before: `config --check /dev/zero` read until the OOM killer came.
+#[test]
+fn config_and_weights_files_are_read_up_to_a_size_cap() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["config", "--check", "/dev/zero"], "option `--check` = /dev/zero: expected a readable TOML file (larger than 1 MiB, too large to be a config file)"),
+        (&["run", "--config", "/dev/zero"], "larger than 1 MiB"),
+        (&["run", "--weights", "/dev/zero", "--frames", "1"], "`/dev/zero`: larger than 256 KiB, too large to be a weight blob"),
+    ];
+    for (args, want) in cases {
+        let o = run(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
