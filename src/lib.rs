@@ -72,8 +72,9 @@ pub mod exit {
     /// Bad input: unreadable or malformed config, command line, source URI,
     /// frames or weights.
     pub const BAD_INPUT: i32 = 2;
-    /// Unavailable: a source, sink, state file or snapshot path that cannot
-    /// be opened or written, a feature not built in, or a report sink that
+    /// Unavailable: a source, sink, state file, snapshot path, output file
+    /// or standard output that cannot be opened or written, training data
+    /// that is missing, a feature not built in, or a report sink that
     /// delivered none of the run's records.
     pub const UNAVAILABLE: i32 = 3;
 }

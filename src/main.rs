@@ -339,6 +339,21 @@ fn config_cmd(a: ConfigArgs) -> i32 {
     exit::OK
 }
 
+/// Writes what a command prints to standard output. A write that fails (a
+/// full disk behind a redirect, a closed pipe) is an output error like the
+/// `stdout` sink's in `run`: a line on stderr and exit code 3, not the
+/// panic (exit 101) of `print!`.
+fn print_out(text: &str) -> Result<(), i32> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| {
+            eprintln!("error: cannot write to standard output: {e}");
+            exit::UNAVAILABLE
+        })
+}
+
 /// Builds the configuration from the file and the command line
 /// (`snapshot`: the path given with `--snapshot` or `--out`, and which).
 /// An error in a value the command line set names the option, not the
@@ -937,9 +952,12 @@ fn train_cmd(a: TrainArgs) -> i32 {
     use stature::classify::{eval, train};
     // Training takes minutes: each stage is logged as it starts.
     stature::logger::init(log::LevelFilter::Info);
+    // Everything that can be refused is refused before the data is read
+    // (a training run takes minutes): the options, then the outputs, then
+    // the data folder.
     let Some(data_dir) = a.data.clone().or_else(stature::dataset::shared_data_dir) else {
         eprintln!("error: no data folder (give --data DIR)");
-        return exit::BAD_INPUT;
+        return exit::UNAVAILABLE;
     };
     if let Some(path) = &a.evaluate {
         let cfg = stature::classify::ClassifyConfig {
@@ -953,18 +971,21 @@ fn train_cmd(a: TrainArgs) -> i32 {
                 return exit::BAD_INPUT;
             }
         };
+        if let Err(e) = check_data_dir(&data_dir) {
+            eprintln!("error: {e}");
+            return exit::UNAVAILABLE;
+        }
         let ev = eval::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
             ev.rows.extend(eval::evaluate_sim(&model, a.seed)?.rows);
             Ok(ev)
         });
         return match ev {
-            Ok(ev) => {
-                print!("{}\n{}", ev.table(), ev.det_table());
-                exit::OK
-            }
+            Ok(ev) => print_out(&format!("{}\n{}", ev.table(), ev.det_table()))
+                .map_or_else(|code| code, |()| exit::OK),
+            // The data, or the ffmpeg that decodes its video, is missing.
             Err(e) => {
                 eprintln!("error: {e}");
-                exit::BAD_INPUT
+                exit::UNAVAILABLE
             }
         };
     }
@@ -975,26 +996,98 @@ fn train_cmd(a: TrainArgs) -> i32 {
             return exit::BAD_INPUT;
         }
     };
-    let (model, report) = match train::train(&opts) {
-        Ok(r) => r,
+    let out = match stature::replace::probe(&a.out) {
+        Ok(t) => t,
         Err(e) => {
-            eprintln!("error: {e}");
-            return exit::BAD_INPUT;
+            eprintln!("error: --out {}: {e}", a.out.display());
+            return exit::UNAVAILABLE;
         }
     };
-    print!("{report}");
-    if let Err(e) = std::fs::write(&a.out, model.to_bytes()) {
-        eprintln!("error: cannot write {}: {e}", a.out.display());
+    let report_path = match a.report.as_deref().map(stature::replace::probe).transpose() {
+        Ok(t) => t,
+        Err(e) => {
+            let r = a.report.as_deref().unwrap_or(std::path::Path::new(""));
+            eprintln!("error: --report {}: {e}", r.display());
+            return exit::UNAVAILABLE;
+        }
+    };
+    if report_path.as_ref() == Some(&out) {
+        eprintln!(
+            "error: --report {} is the weights file (--out): give another path",
+            a.report.as_deref().unwrap_or(&out).display()
+        );
+        return exit::BAD_INPUT;
+    }
+    if let Err(e) = check_data_dir(&opts.data_dir) {
+        eprintln!("error: {e}");
         return exit::UNAVAILABLE;
     }
-    if let Some(r) = &a.report {
-        if let Err(e) = std::fs::write(r, &report) {
-            eprintln!("error: cannot write {}: {e}", r.display());
+    let (model, report) = match train::train(&opts) {
+        Ok(r) => r,
+        // The options were checked above: what fails now is the data (a
+        // file missing or unreadable, ffmpeg absent).
+        Err(e) => {
+            eprintln!("error: {e}");
+            return exit::UNAVAILABLE;
+        }
+    };
+    // Both files are staged before either replaces its path: a failure
+    // leaves the old weights and report together.
+    let weights = model.to_bytes();
+    let mut outputs: Vec<(&PathBuf, &[u8])> = Vec::new();
+    if let Some(r) = &report_path {
+        outputs.push((r, report.as_bytes()));
+    }
+    outputs.push((&out, &weights));
+    let mut staged = Vec::new();
+    for &(path, bytes) in &outputs {
+        match stature::replace::Staged::write(path, bytes) {
+            Ok(s) => staged.push((s, path)),
+            // (The files staged so far are removed as `staged` drops.)
+            Err(e) => {
+                eprintln!("error: cannot write {}: {e}", path.display());
+                return exit::UNAVAILABLE;
+            }
+        }
+    }
+    for (s, path) in staged {
+        if let Err(e) = s.commit() {
+            eprintln!("error: cannot write {}: {e}", path.display());
             return exit::UNAVAILABLE;
         }
     }
-    eprintln!("wrote {}", a.out.display());
-    exit::OK
+    for path in report_path.iter().chain([&out]) {
+        eprintln!("wrote {}", path.display());
+    }
+    // Printed last: a stdout that fails costs the printout, not the files.
+    print_out(&report).map_or_else(|code| code, |()| exit::OK)
+}
+
+/// The data folder, checked before training or evaluation starts: a
+/// missing one is unavailable input (exit code 3), like a source file.
+fn check_data_dir(dir: &std::path::Path) -> Result<(), String> {
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err(format!("data folder {}: not a directory", dir.display())),
+        Err(e) => Err(format!("data folder {}: {e}", dir.display())),
+    }
+}
+
+/// Refuses a numeric option outside `range` (also NaN), naming the option,
+/// the value and the range.
+fn in_range<T: PartialOrd + std::fmt::Display>(
+    option: &str,
+    value: Option<T>,
+    range: std::ops::RangeInclusive<T>,
+) -> Result<(), String> {
+    match value {
+        Some(v) if !range.contains(&v) => Err(format!(
+            "{option} {v}: expected a value in {}..={}",
+            range.start(),
+            range.end()
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// The training recipe ([`train::TrainOptions::new`] on the default layout)
@@ -1005,6 +1098,21 @@ fn train_options(
 ) -> Result<stature::classify::train::TrainOptions, String> {
     use stature::classify::layout::{Fit, Layout, ASPECT_CENTRES_Q8};
     use stature::classify::train;
+    // Each numeric option's range: outside it the trainer would write a
+    // useless classifier (C = 0 or NaN, nothing selected) or run empty.
+    in_range("--c", a.c, 0.0001..=1000.0)?;
+    in_range("--select", a.select, 0.01..=1.0)?;
+    in_range(
+        "--pets-stride",
+        a.pets_stride,
+        1..=train::PETS_TRAIN_LAST + 1,
+    )?;
+    in_range("--persons", a.persons, 1..=8)?;
+    in_range("--mining-rounds", a.mining_rounds, 0..=10)?;
+    in_range("--mine-sim-stride", a.mine_sim_stride, 0..=1000)?;
+    in_range("--margin", a.margin, 0..=256)?;
+    in_range("--hog-cell", a.hog_cell, 2..=32)?;
+    in_range("--lbp-cell", a.lbp_cell, 2..=32)?;
     let d = Layout::default_layout();
     let (w, h) = match &a.window {
         None => (d.win_w, d.win_h),
@@ -1048,10 +1156,10 @@ fn train_options(
     o.eval = a.eval;
     o.skip_final_cv = a.no_final_cv;
     if let Some(s) = a.select {
-        o.select = s.clamp(0.01, 1.0);
+        o.select = s;
     }
     if let Some(s) = a.pets_stride {
-        o.pets_stride = s.max(1);
+        o.pets_stride = s;
     }
     if let Some(s) = &a.sim_seeds {
         o.sim_seeds = train::parse_seeds(s).map_err(|e| format!("--sim-seeds {e}"))?;
@@ -1066,7 +1174,7 @@ fn train_options(
         o.mirror = m;
     }
     if let Some(p) = a.persons {
-        o.persons_per_frame = p.clamp(1, 8);
+        o.persons_per_frame = p;
     }
     if let Some(r) = a.mining_rounds {
         o.mining_rounds = r;
@@ -1077,6 +1185,7 @@ fn train_options(
     for w in &a.weights {
         o.kind_weights.set(w).map_err(|e| format!("--weight {e}"))?;
     }
+    train::check_options(&o)?;
     Ok(o)
 }
 

@@ -409,9 +409,9 @@ pub fn select_blocks(layout: &Layout, w: &[f32], keep: f64) -> (Layout, Vec<usiz
     (l, cols)
 }
 
-/// Trains a model; returns it and a Markdown report.
-pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
-    let t0 = Instant::now();
+/// The checks [`train`] makes of its options before it reads any data
+/// (`stature train` makes them before it checks its outputs).
+pub fn check_options(o: &TrainOptions) -> Result<(), String> {
     o.layout.validate().map_err(|e| e.0.clone())?;
     if let Some(s) = o
         .sim_seeds
@@ -421,6 +421,13 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     {
         return Err(format!("sim seed {s} is held out for evaluation"));
     }
+    Ok(())
+}
+
+/// Trains a model; returns it and a Markdown report.
+pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
+    let t0 = Instant::now();
+    check_options(o)?;
     let mut log = String::new();
     let l = &o.layout;
     let _ = writeln!(

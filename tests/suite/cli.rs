@@ -1118,6 +1118,106 @@ fn log_lines_carry_syslog_priorities_when_stderr_is_the_journal() {
     assert!(text.lines().all(|l| l.starts_with('[')), "{text}");
 }
 
+/// Every refusal of `stature train` comes before it reads the data (a
+/// training run takes minutes). Before: bad values trained a useless
+/// classifier with exit 0, and a bad `--out` or `--report` was found
+/// after training.
+#[test]
+fn train_refuses_bad_options_and_outputs_before_reading_data() {
+    let dir = common::fresh_dir("cli-train_refuses_bad_options_and_outputs");
+    // An empty data folder: training stops at its first file, so a
+    // refusal that came after the data would say that instead.
+    let data = dir.join("data");
+    std::fs::create_dir(&data).unwrap();
+    let out = dir.join("w.bin").display().to_string();
+    let cases: &[(&[&str], i32, &str)] = &[
+        (
+            &["--c", "nan"],
+            2,
+            "--c NaN: expected a value in 0.0001..=1000",
+        ),
+        (&["--c", "0"], 2, "--c 0: expected a value in 0.0001..=1000"),
+        (&["--c=-1"], 2, "--c -1: expected"),
+        (
+            &["--select", "0"],
+            2,
+            "--select 0: expected a value in 0.01..=1",
+        ),
+        (&["--select", "1.5"], 2, "--select 1.5: expected"),
+        (
+            &["--pets-stride", "0"],
+            2,
+            "--pets-stride 0: expected a value in 1..=600",
+        ),
+        (
+            &["--persons", "0"],
+            2,
+            "--persons 0: expected a value in 1..=8",
+        ),
+        (
+            &["--mining-rounds", "11"],
+            2,
+            "--mining-rounds 11: expected a value in 0..=10",
+        ),
+        (
+            &["--margin", "300"],
+            2,
+            "--margin 300: expected a value in 0..=256",
+        ),
+        (&["--sim-seeds", "101"], 2, "sim seed 101 is held out"),
+        (
+            &["--out", "/nonexistent-dir/w.bin"],
+            3,
+            "--out /nonexistent-dir/w.bin: cannot create /nonexistent-dir/w.bin.stature-tmp",
+        ),
+        (
+            &["--out", "/dev/full"],
+            3,
+            "--out /dev/full: not a regular file",
+        ),
+        (
+            &["--report", "/nonexistent-dir/r.md"],
+            3,
+            "--report /nonexistent-dir/r.md: cannot create",
+        ),
+        (&["--report", &out], 2, "is the weights file (--out)"),
+        (
+            &["--data", "/nonexistent-dir"],
+            3,
+            "data folder /nonexistent-dir: No such file",
+        ),
+        // Missing data is unavailable input, exit code 3 (before: 2).
+        (&[], 3, "mit-cbcl-pedestrians"),
+    ];
+    for (args, code, want) in cases {
+        let mut full = vec!["train"];
+        for (option, default) in [("--data", data.to_str().unwrap()), ("--out", &out)] {
+            if !args.contains(&option) {
+                full.extend([option, default]);
+            }
+        }
+        full.extend_from_slice(args);
+        let started = std::time::Instant::now();
+        let o = run(&full);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(*code), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            started.elapsed().as_secs() < 30,
+            "{args:?}: refused only after {:?}",
+            started.elapsed()
+        );
+        // Nothing written, no temporary file left beside the outputs.
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n != "data")
+            .collect();
+        assert!(left.is_empty(), "{args:?}: {left:?}");
+    }
+}
+
 /// Before: `config --check /dev/zero` read until the OOM killer came.
 #[test]
 fn config_and_weights_files_are_read_up_to_a_size_cap() {
