@@ -138,9 +138,11 @@ keep=0
 [ "$edited" = 1 ] && [ "$replace_config" = 0 ] && keep=1
 # The config the service will read, checked by the new binary before
 # anything is replaced (when it runs here, i.e. not into a DESTDIR tree).
+# Its keys only: the state directory is made by systemd when the service
+# first starts, and the service's user is not this one.
 if [ -z "$D" ]; then
     if [ "$keep" = 1 ]; then checked=$conf; else checked=$conf.new; fi
-    "$binary" config --check "$checked" || {
+    "$binary" config --check "$checked" --keys-only || {
         if [ "$keep" = 1 ]; then
             # What to merge the edits into is needed now more than ever.
             mv -f "$conf.new" "$conf.dist"

@@ -293,9 +293,16 @@ struct ConfigArgs {
     /// Print the documented default configuration.
     #[arg(long, conflicts_with = "check")]
     print_defaults: bool,
-    /// Check a configuration file and report the first problem.
+    /// Check a configuration file and report the first problem, including
+    /// what `run` would refuse at start-up (the state and snapshot paths,
+    /// a UDP host, an MQTT CA file), as the user who runs the check.
     #[arg(long)]
     check: Option<PathBuf>,
+    /// With --check: the keys and values only, not the start-up checks (for
+    /// an installer that runs before the service's directories exist and
+    /// not as the service's user).
+    #[arg(long, requires = "check")]
+    keys_only: bool,
 }
 
 fn main() {
@@ -316,27 +323,33 @@ fn main() {
 }
 
 fn config_cmd(a: ConfigArgs) -> i32 {
-    if let Some(path) = a.check {
-        return match Config::load(&path, "--check") {
-            Ok(cfg) => match source::check(&cfg.source.uri) {
-                Ok(()) => {
-                    println!("{}: ok", path.display());
-                    exit::OK
-                }
-                // A source this build lacks is exit code 3, as `run` says.
-                Err(e) => {
-                    eprintln!("error: {}: source.uri: {e}", path.display());
-                    e.exit_code()
-                }
-            },
-            Err(e) => {
-                eprintln!("error: {e}");
-                exit::BAD_INPUT
-            }
-        };
+    let Some(path) = a.check else {
+        return print_out(stature::config::DEFAULTS_TOML).map_or_else(|code| code, |()| exit::OK);
+    };
+    let cfg = match Config::load(&path, "--check") {
+        Ok(cfg) => cfg,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return exit::BAD_INPUT;
+        }
+    };
+    // A source this build lacks is exit code 3, as `run` says.
+    if let Err(e) = source::check(&cfg.source.uri) {
+        eprintln!("error: {}: source.uri: {e}", path.display());
+        return e.exit_code();
     }
-    print!("{}", stature::config::DEFAULTS_TOML);
-    exit::OK
+    // What `run` would refuse at start-up, with its exit code: a config
+    // that passes here and then stops the service helps nobody.
+    let checked = if a.keys_only {
+        Ok(())
+    } else {
+        check_run_paths(&cfg).and_then(|_snapshot| check_sinks(&cfg))
+    };
+    if let Err(r) = checked {
+        eprintln!("error: {}: {}", path.display(), r.message);
+        return r.code;
+    }
+    print_out(&format!("{}: ok\n", path.display())).map_or_else(|code| code, |()| exit::OK)
 }
 
 /// Writes what a command prints to standard output. A write that fails (a
@@ -352,6 +365,76 @@ fn print_out(text: &str) -> Result<(), i32> {
             eprintln!("error: cannot write to standard output: {e}");
             exit::UNAVAILABLE
         })
+}
+
+/// A start-up check that failed: the message and the exit code.
+struct Refused {
+    message: String,
+    code: i32,
+}
+
+/// The paths a run writes, checked before it reads a frame (by `run` and
+/// by `config --check`): the state file (a temporary file is created and
+/// removed beside it) and the snapshot, whose temporary file is created
+/// now and returned for the run to write.
+fn check_run_paths(cfg: &Config) -> Result<Option<stature::snapshot::SnapshotFile>, Refused> {
+    if !cfg.run.state.is_empty() {
+        let path = std::path::Path::new(&cfg.run.state);
+        if let Err(e) = stature::calibrate::state::StateFile::open(path, 0) {
+            return Err(Refused {
+                message: format!("calibration state {}: {e}", path.display()),
+                code: exit::UNAVAILABLE,
+            });
+        }
+    }
+    if cfg.run.snapshot.is_empty() {
+        return Ok(None);
+    }
+    stature::snapshot::SnapshotFile::create(std::path::Path::new(&cfg.run.snapshot))
+        .map(Some)
+        .map_err(|e| Refused {
+            message: e.to_string(),
+            code: exit::UNAVAILABLE,
+        })
+}
+
+/// What `config --check` can know of the sinks without sending anything,
+/// through the calls `run` makes at start-up: a UDP host resolves, an MQTT
+/// sink's TLS roots (`ca=`) load. Files and serial ports are not opened
+/// here (that would create the file or toggle the port's lines); `run`
+/// finds a problem with those when it starts.
+fn check_sinks(cfg: &Config) -> Result<(), Refused> {
+    use stature::report::sink::{Sink, SinkSpec};
+    let refused = |e: &dyn std::fmt::Display| Refused {
+        message: format!("cannot open report sink: {e}"),
+        code: exit::UNAVAILABLE,
+    };
+    let specs = cfg.report.sink_specs().map_err(|e| Refused {
+        message: e.to_string(),
+        code: exit::BAD_INPUT,
+    })?;
+    for spec in &specs {
+        match spec {
+            #[cfg(feature = "mqtt")]
+            SinkSpec::Mqtt(m) => {
+                let settings =
+                    stature::report::mqtt::MqttSettings::resolve(m, &cfg.report.mqtt, |k| {
+                        std::env::var(k).ok()
+                    });
+                stature::report::mqtt::link::check_local(&settings).map_err(|e| refused(&e))?;
+            }
+            // Without MQTT support, opening refuses at once, as in `run`.
+            #[cfg(not(feature = "mqtt"))]
+            SinkSpec::Mqtt(_) => {
+                drop(Sink::open_with(spec, &cfg.report.mqtt).map_err(|e| refused(&e))?)
+            }
+            SinkSpec::Udp(_) => {
+                drop(Sink::open_with(spec, &cfg.report.mqtt).map_err(|e| refused(&e))?)
+            }
+            SinkSpec::Stdout | SinkSpec::File(_) | SinkSpec::Serial { .. } => {}
+        }
+    }
+    Ok(())
 }
 
 /// Builds the configuration from the file and the command line
@@ -523,24 +606,15 @@ fn run_source(
         }
     }
     // The state and snapshot paths are checked before anything else starts.
-    if !cfg.run.state.is_empty() {
-        let path = std::path::Path::new(&cfg.run.state);
-        if let Err(e) = stature::calibrate::state::StateFile::open(path, 0) {
-            log::error!("calibration state {}: {e}", path.display());
-            return exit::UNAVAILABLE;
+    let mut snapshot = match check_run_paths(cfg) {
+        Ok(file) => {
+            file.map(|f| stature::snapshot::Snapshot::with_file(cfg, &info, f, until_confident))
         }
-    }
-    let mut snapshot = None;
-    if !cfg.run.snapshot.is_empty() {
-        let path = std::path::Path::new(&cfg.run.snapshot);
-        match stature::snapshot::Snapshot::new(cfg, &info, path, until_confident) {
-            Ok(s) => snapshot = Some(s),
-            Err(e) => {
-                log::error!("{e}");
-                return exit::UNAVAILABLE;
-            }
+        Err(r) => {
+            log::error!("{}", r.message);
+            return r.code;
         }
-    }
+    };
     // Validated already; this cannot fail.
     let specs = match cfg.report.sink_specs() {
         Ok(s) => s,

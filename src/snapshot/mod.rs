@@ -660,15 +660,31 @@ impl Snapshot {
         path: &Path,
         until_confident: bool,
     ) -> Result<Self, SnapshotError> {
-        Ok(Snapshot {
+        Ok(Snapshot::with_file(
+            cfg,
+            info,
+            SnapshotFile::create(path)?,
+            until_confident,
+        ))
+    }
+
+    /// [`Snapshot::new`] with the file already created (checked at
+    /// start-up, before the source opened).
+    pub fn with_file(
+        cfg: &Config,
+        info: &SourceInfo,
+        file: SnapshotFile,
+        until_confident: bool,
+    ) -> Self {
+        Snapshot {
             canvas: Canvas::new(info.size),
-            file: SnapshotFile::create(path)?,
+            file,
             scale: cfg.calibrate.scale_mode(),
             min_confidence: cfg.measure.min_confidence,
             until_confident,
             marks: heapless::Vec::new(),
             result: None,
-        })
+        }
     }
 
     /// The image (drawn at the end).

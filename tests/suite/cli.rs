@@ -1233,3 +1233,62 @@ fn config_and_weights_files_are_read_up_to_a_size_cap() {
         assert!(err.contains(want), "{args:?}: {err}");
     }
 }
+
+/// `config --check` makes the checks `run` makes at start-up, with its
+/// exit codes (before: these configs passed, then `run` stopped with 3).
+#[test]
+fn config_check_refuses_what_run_would_refuse_at_start() {
+    let dir = common::fresh_dir("cli-config_check_refuses_what_run_would_refuse");
+    let cases = [
+        (
+            "[report]\nsinks = [\"mqtt:127.0.0.1:1?tls=true&ca=/nonexistent-dir/ca.pem\"]\n",
+            "MQTT CA file `/nonexistent-dir/ca.pem`",
+        ),
+        (
+            "[run]\nstate = \"/nonexistent-dir/x.state\"\n",
+            "calibration state /nonexistent-dir/x.state: cannot create",
+        ),
+        (
+            "[run]\nsnapshot = \"/nonexistent-dir/x.png\"\n",
+            "cannot write snapshot /nonexistent-dir/x.png",
+        ),
+    ];
+    for (i, (toml, want)) in cases.iter().enumerate() {
+        let cfg = dir.join(format!("{i}.toml"));
+        std::fs::write(&cfg, toml).unwrap();
+        let cfg = cfg.display().to_string();
+        let check = run(&["config", "--check", &cfg]);
+        let err = String::from_utf8_lossy(&check.stderr);
+        assert_eq!(check.status.code(), Some(3), "{toml}: {err}");
+        assert!(err.contains(want), "{toml}: {err}");
+        let r = run(&["run", "--config", &cfg, "--frames", "1"]);
+        let run_err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), check.status.code(), "{toml}: {run_err}");
+        assert!(run_err.contains(want), "{toml}: {run_err}");
+        // What board/install.sh asks, before the service's state
+        // directory exists: the keys only.
+        let keys = run(&["config", "--check", &cfg, "--keys-only"]);
+        let err = String::from_utf8_lossy(&keys.stderr);
+        assert_eq!(keys.status.code(), Some(0), "{toml}: {err}");
+    }
+    // Paths that can be written pass, and the check leaves nothing behind.
+    let out = dir.join("out");
+    std::fs::create_dir(&out).unwrap();
+    let cfg = dir.join("ok.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[run]\nstate = \"{0}/x.state\"\nsnapshot = \"{0}/x.png\"\n",
+            out.display()
+        ),
+    )
+    .unwrap();
+    let o = run(&["config", "--check", &cfg.display().to_string()]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0);
+}

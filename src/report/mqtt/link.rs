@@ -512,6 +512,16 @@ fn hint(e: &ConnectionError) -> &'static str {
 
 /// A rustls client configuration with the ring provider, trusting `ca`
 /// (a PEM file) or, when empty, the system's CA certificates.
+/// The local part of [`MqttSink::open`], which cannot wait for the
+/// broker: the TLS roots (the `ca=` file, or the system's). What `stature
+/// config --check` asks of an `mqtt:` sink without connecting.
+pub fn check_local(settings: &MqttSettings) -> io::Result<()> {
+    if settings.tls {
+        tls_config(&settings.ca)?;
+    }
+    Ok(())
+}
+
 fn tls_config(ca: &str) -> io::Result<rustls::ClientConfig> {
     use rustls::pki_types::{pem::PemObject, CertificateDer};
     let bad = |msg: String| io::Error::new(io::ErrorKind::InvalidInput, msg);
