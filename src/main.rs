@@ -284,7 +284,7 @@ struct SimArgs {
     #[arg(long, default_value_t = 0)]
     png_frame: u64,
     /// Draw the truth (boxes, head and foot points, horizon) on the PNG.
-    #[arg(long)]
+    #[arg(long, requires = "png")]
     annotate: bool,
 }
 
@@ -927,10 +927,11 @@ fn sim_cmd(a: SimArgs) -> i32 {
     use source::sim::{export, scene, SimOptions, SimSource};
     use std::io::Write;
     if a.list {
+        let mut list = String::new();
         for s in scene::scenes() {
-            println!("{:<6} {}", s.name, s.about);
+            list.push_str(&format!("{:<6} {}\n", s.name, s.about));
         }
-        return exit::OK;
+        return print_out(&list).map_or_else(|code| code, |()| exit::OK);
     }
     let Some(spec) = scene::find(&a.scene) else {
         eprintln!(
@@ -944,6 +945,22 @@ fn sim_cmd(a: SimArgs) -> i32 {
     {
         eprintln!("error: --frames must be in 1..={}", source::sim::MAX_FRAMES);
         return exit::BAD_INPUT;
+    }
+    // Two outputs into one file (or both on stdout) would interleave.
+    let outputs = [("--out", &a.out), ("--truth", &a.truth), ("--png", &a.png)];
+    for (i, (o1, p1)) in outputs.iter().enumerate() {
+        for (o2, p2) in &outputs[i + 1..] {
+            if let (Some(p1), Some(p2)) = (p1, p2) {
+                if same_output(p1, p2) {
+                    eprintln!(
+                        "error: {o1} {} and {o2} {} name the same output",
+                        p1.display(),
+                        p2.display()
+                    );
+                    return exit::BAD_INPUT;
+                }
+            }
+        }
     }
     let opts = SimOptions {
         seed: a.seed,
@@ -975,10 +992,12 @@ fn sim_cmd(a: SimArgs) -> i32 {
             export::annotate(&mut rgb, &sim);
         }
         let written = std::fs::File::create(path).and_then(|f| {
-            export::write_png(std::io::BufWriter::new(f), &rgb, spec.width, spec.height)
+            let mut w = std::io::BufWriter::new(f);
+            export::write_png(&mut w, &rgb, spec.width, spec.height)?;
+            w.flush()
         });
         if let Err(e) = written {
-            return fail(&path.display(), e);
+            return fail(&format_args!("--png {}", path.display()), e);
         }
     }
     if a.out.is_none() && a.truth.is_none() {
@@ -988,26 +1007,35 @@ fn sim_cmd(a: SimArgs) -> i32 {
         }
         return exit::OK;
     }
-    let open = |p: &PathBuf| -> std::io::Result<Box<dyn Write>> {
-        if p.as_os_str() == "-" {
-            Ok(Box::new(std::io::BufWriter::new(std::io::stdout().lock())))
-        } else {
-            Ok(Box::new(std::io::BufWriter::new(std::fs::File::create(p)?)))
+    // Both files are opened before either is emptied, so a bad --truth
+    // path does not cost an existing clip.
+    let mut opened: Vec<SimOutput> = Vec::new();
+    for (option, path) in [("--truth", &a.truth), ("--out", &a.out)] {
+        let Some(path) = path else { continue };
+        match SimOutput::open(path) {
+            Ok(o) => opened.push(o),
+            Err(e) => {
+                for o in &opened {
+                    o.forget();
+                }
+                return fail(&format_args!("{option} {}", path.display()), e);
+            }
         }
-    };
-    let mut y4m = match a.out.as_ref().map(open).transpose() {
-        Ok(w) => w,
-        Err(e) => return fail(&"cannot create the clip", e),
-    };
-    let mut truth = match a.truth.as_ref().map(open).transpose() {
-        Ok(w) => w,
-        Err(e) => return fail(&"cannot create the truth file", e),
-    };
+    }
+    let mut writers = Vec::new();
+    for o in opened {
+        match o.start() {
+            Ok(w) => writers.push(w),
+            Err((name, e)) => return fail(&name, e),
+        }
+    }
+    let mut truth = a.truth.as_ref().map(|_| writers.remove(0));
+    let mut y4m = a.out.as_ref().map(|_| writers.remove(0));
     let total = sim.frames();
     let result = export::export(
         &mut sim,
-        y4m.as_deref_mut().map(|w| w as &mut dyn Write),
-        truth.as_deref_mut().map(|w| w as &mut dyn Write),
+        y4m.as_mut().map(|w| w as &mut dyn Write),
+        truth.as_mut().map(|w| w as &mut dyn Write),
         |k| {
             if (k + 1) % 50 == 0 || k + 1 == total {
                 progress("stature sim", k + 1, total, 50);
@@ -1018,7 +1046,120 @@ fn sim_cmd(a: SimArgs) -> i32 {
     .and_then(|_| truth.as_mut().map_or(Ok(()), |w| w.flush()));
     match result {
         Ok(()) => exit::OK,
-        Err(e) => fail(&"writing failed", e),
+        // The error names the output (see `Named`).
+        Err(e) => {
+            eprintln!("error: {e}");
+            exit::UNAVAILABLE
+        }
+    }
+}
+
+/// Whether two output paths name one destination: both `-` (stdout), the
+/// same spelling, or one existing file under two names.
+fn same_output(a: &std::path::Path, b: &std::path::Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    if a == b {
+        return true;
+    }
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(ma), Ok(mb)) => (ma.dev(), ma.ino()) == (mb.dev(), mb.ino()),
+        _ => false,
+    }
+}
+
+/// An output of `stature sim`, opened but not yet emptied.
+enum SimOutput {
+    Stdout,
+    File {
+        file: std::fs::File,
+        path: PathBuf,
+        /// Created by the open: removed again if the other output fails.
+        created: bool,
+    },
+}
+
+impl SimOutput {
+    fn open(path: &std::path::Path) -> std::io::Result<SimOutput> {
+        if path.as_os_str() == "-" {
+            return Ok(SimOutput::Stdout);
+        }
+        let existed = std::fs::symlink_metadata(path).is_ok();
+        // No truncation yet: that waits until every output has opened.
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)?;
+        Ok(SimOutput::File {
+            file,
+            path: path.to_path_buf(),
+            created: !existed,
+        })
+    }
+
+    /// The other output failed: a file this open created is removed.
+    fn forget(&self) {
+        if let SimOutput::File {
+            path,
+            created: true,
+            ..
+        } = self
+        {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+
+    /// Empties a regular file (a FIFO or device is written as it is) and
+    /// returns the buffered writer.
+    fn start(self) -> Result<Named, (String, std::io::Error)> {
+        match self {
+            SimOutput::Stdout => Ok(Named {
+                name: "standard output".into(),
+                inner: Box::new(std::io::BufWriter::new(std::io::stdout().lock())),
+            }),
+            SimOutput::File { file, path, .. } => {
+                let name = path.display().to_string();
+                let emptied =
+                    file.metadata().and_then(
+                        |m| {
+                            if m.is_file() {
+                                file.set_len(0)
+                            } else {
+                                Ok(())
+                            }
+                        },
+                    );
+                match emptied {
+                    Ok(()) => Ok(Named {
+                        name,
+                        inner: Box::new(std::io::BufWriter::new(file)),
+                    }),
+                    Err(e) => Err((name, e)),
+                }
+            }
+        }
+    }
+}
+
+/// A writer whose errors name its destination (`sim` writes two at once,
+/// and an error from the exporter alone would not say which failed).
+struct Named {
+    name: String,
+    inner: Box<dyn std::io::Write>,
+}
+
+impl Named {
+    fn named(&self, e: std::io::Error) -> std::io::Error {
+        std::io::Error::new(e.kind(), format!("cannot write {}: {e}", self.name))
+    }
+}
+
+impl std::io::Write for Named {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.inner.write(buf).map_err(|e| self.named(e))
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush().map_err(|e| self.named(e))
     }
 }
 

@@ -1118,6 +1118,17 @@ fn log_lines_carry_syslog_priorities_when_stderr_is_the_journal() {
     assert!(text.lines().all(|l| l.starts_with('[')), "{text}");
 }
 
+/// `stature ARGS` with `path` as its standard output.
+fn run_to(path: &str, args: &[&str]) -> std::process::Output {
+    Command::new(stature_bin())
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(std::fs::File::create(path).unwrap()))
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap()
+}
+
 /// Every refusal of `stature train` comes before it reads the data (a
 /// training run takes minutes). Before: bad values trained a useless
 /// classifier with exit 0, and a bad `--out` or `--report` was found
@@ -1218,6 +1229,31 @@ fn train_refuses_bad_options_and_outputs_before_reading_data() {
     }
 }
 
+/// A full disk or closed pipe on stdout was a panic (exit 101); `train`'s
+/// panic came before its weights were written.
+#[test]
+fn an_unwritable_stdout_is_exit_3_with_the_reason() {
+    let dir = common::fresh_dir("cli-an_unwritable_stdout_is_exit_3");
+    let cfg = dir.join("ok.toml");
+    std::fs::write(&cfg, "").unwrap();
+    let cfg = cfg.display().to_string();
+    for args in [
+        &["config", "--print-defaults"][..],
+        &["config", "--check", &cfg],
+        &["sim", "--list"],
+        &["sim", "--frames", "1", "--out", "-"],
+    ] {
+        let o = run_to("/dev/full", args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(3), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            err.contains("standard output: No space left on device"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
 /// Before: `config --check /dev/zero` read until the OOM killer came.
 #[test]
 fn config_and_weights_files_are_read_up_to_a_size_cap() {
@@ -1231,6 +1267,61 @@ fn config_and_weights_files_are_read_up_to_a_size_cap() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn sim_opens_every_output_before_emptying_one() {
+    let dir = common::fresh_dir("cli-sim_opens_every_output_before_emptying_one");
+    let clip = dir.join("c.y4m");
+    std::fs::write(&clip, b"an existing clip").unwrap();
+    let clip_s = clip.display().to_string();
+    let new = dir.join("new.y4m").display().to_string();
+    let truth = dir.join("t.json").display().to_string();
+    let cases: &[(&[&str], i32, &str)] = &[
+        // Before: the clip was emptied, then the truth failed.
+        (
+            &["--out", &clip_s, "--truth", "/nonexistent-dir/t.json"],
+            3,
+            "--truth /nonexistent-dir/t.json: No such file",
+        ),
+        (
+            &["--out", &new, "--truth", "/nonexistent-dir/t.json"],
+            3,
+            "--truth /nonexistent-dir/t.json",
+        ),
+        // Before: both written into one file, interleaved.
+        (
+            &["--out", &clip_s, "--truth", &clip_s],
+            2,
+            "name the same output",
+        ),
+        (
+            &["--out", "-", "--truth", "-"],
+            2,
+            "--out - and --truth - name the same output",
+        ),
+        // Before: ignored without a PNG to draw on.
+        (&["--annotate", "--out", &new], 2, "--png"),
+        (
+            &["--out", "/dev/full", "--truth", &truth],
+            3,
+            "cannot write /dev/full: No space left on device",
+        ),
+    ];
+    for (args, code, want) in cases {
+        let mut full = vec!["sim", "--frames", "2"];
+        full.extend_from_slice(args);
+        let o = run(&full);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(*code), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert_eq!(
+            std::fs::read(&clip).unwrap(),
+            b"an existing clip",
+            "{args:?}"
+        );
+        assert!(!std::path::Path::new(&new).exists(), "{args:?}");
     }
 }
 
