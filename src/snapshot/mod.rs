@@ -740,6 +740,16 @@ impl run::Observer for Snapshot {
     }
 
     fn end(&mut self, p: &Pipeline, stopped_by: StopReason) {
+        if p.frames == 0 {
+            // A blank picture would pass for a camera that saw nothing.
+            let e = SnapshotError {
+                path: self.file.path().to_path_buf(),
+                error: io::Error::other("no frame to draw (the run ended before its first frame)"),
+            };
+            log::error!("{e}");
+            self.result = Some(Err(e));
+            return;
+        }
         let note = (stopped_by == StopReason::SourceError)
             .then_some("the source failed: this frame may be partly the one that failed");
         self.render(p, note);

@@ -1383,3 +1383,28 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
     );
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0);
 }
+
+/// Before: a blank PNG and exit 0 for a stream that had no frame.
+#[test]
+fn a_snapshot_of_a_stream_without_frames_is_an_error() {
+    let dir = common::fresh_dir("cli-a_snapshot_of_a_stream_without_frames");
+    let clip = dir.join("header-only.y4m");
+    std::fs::write(&clip, b"YUV4MPEG2 W64 H48 F25:1 C420jpeg\n").unwrap();
+    let png = dir.join("v.png");
+    let o = run(&[
+        "snapshot",
+        "--source",
+        &format!("y4m:{}", clip.display()),
+        "--out",
+        &png.display().to_string(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("no frame to draw"), "{err}");
+    assert!(!png.exists());
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "no temporary file left"
+    );
+}
