@@ -177,13 +177,13 @@ struct TrainArgs {
     /// Window size WxH in pixels (default 32x64).
     #[arg(long)]
     window: Option<String>,
-    /// Margin above and below the box, 1/256 of its height (default 32).
+    /// Margin above and below the box, 1/256 of its height, 0..=256 (default 32).
     #[arg(long)]
     margin: Option<u16>,
-    /// HOG cell side, pixels (default 4).
+    /// HOG cell side, pixels, 2..=32 dividing the window (default 4).
     #[arg(long)]
     hog_cell: Option<u8>,
-    /// LBP cell side, pixels (default 8).
+    /// LBP cell side, pixels, 2..=32 dividing the window (default 8).
     #[arg(long)]
     lbp_cell: Option<u8>,
     /// LBP comparison offset, grey levels (default 2).
@@ -204,13 +204,13 @@ struct TrainArgs {
     /// Feature set: hog+lbp, hog or lbp.
     #[arg(long, default_value = "hog+lbp")]
     features: String,
-    /// SVM C (default: chosen by cross-validation).
+    /// SVM C, 0.0001..=1000 (default: chosen by cross-validation).
     #[arg(long)]
     c: Option<f64>,
-    /// Share of HOG blocks / LBP cells kept by weight magnitude (Park et al.; default 0.5).
+    /// Share of HOG blocks / LBP cells kept by weight magnitude, 0.01..=1 (Park et al.; default 0.5).
     #[arg(long)]
     select: Option<f64>,
-    /// Use every n-th PETS training frame for the base set (default 1).
+    /// Use every n-th PETS training frame for the base set, 1..=600 (default 1).
     #[arg(long)]
     pets_stride: Option<u32>,
     /// Also evaluate on the held-out PETS frames (600-794) and sim seeds.
@@ -231,13 +231,13 @@ struct TrainArgs {
     /// Also train on the mirror image of every PETS and simulated person (default true).
     #[arg(long)]
     mirror: Option<bool>,
-    /// Jittered boxes of each clean person per training frame (default 1).
+    /// Jittered boxes of each clean person per training frame, 1..=8 (default 1).
     #[arg(long)]
     persons: Option<usize>,
-    /// Rounds of hard-negative mining (default 1).
+    /// Rounds of hard-negative mining, 0..=10 (default 1).
     #[arg(long)]
     mining_rounds: Option<usize>,
-    /// Search every n-th simulated training frame for hard negatives (0: PETS only; default 0).
+    /// Search every n-th simulated training frame for hard negatives, 0..=1000 (0: PETS only; default 0).
     #[arg(long)]
     mine_sim_stride: Option<u64>,
     /// Cost multiplier of a kind, KIND=X (person, background, group, fragment, car, dog); repeatable.
