@@ -455,8 +455,7 @@ mod tests {
 
     #[test]
     fn one_file_or_port_under_two_spellings_is_one_sink() {
-        let dir = std::env::temp_dir().join(format!("stature-dup-sinks-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::scratch::fresh_dir("dup-sinks");
         let file = dir.join("a.jsonl");
         std::fs::write(&file, "").unwrap();
         let link = dir.join("link.jsonl");
@@ -492,7 +491,6 @@ mod tests {
         }
         let (a, b) = (format!("file:{d}/a.jsonl"), format!("file:{d}/b.jsonl"));
         assert!(sinks(a, b).sink_specs().is_ok());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -43,6 +43,9 @@ pub mod logger;
 pub mod qformat;
 pub mod replace;
 pub mod rng;
+#[cfg(test)]
+#[path = "../tests/common/scratch.rs"]
+mod scratch;
 
 pub mod source;
 

@@ -193,10 +193,8 @@ fn near_vertical_view_is_flagged() {
 
 #[test]
 fn state_file_round_trip_and_corrupt_file() {
-    let dir = std::env::temp_dir().join(format!("stature-state-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::scratch::fresh_dir("state");
     let path = dir.join("cal.json");
-    let _ = std::fs::remove_file(&path);
     let mut rng = Rng::new(2);
     let cam = random_camera(&mut rng, 640, 480);
     let cfg = CalibrateConfig {
@@ -263,7 +261,6 @@ fn state_file_round_trip_and_corrupt_file() {
         state::StateFile::new(&path, 0).load(),
         Err(state::StateError::Corrupt(_))
     ));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A file too large to be a state file is refused unread (a mistyped
@@ -271,9 +268,7 @@ fn state_file_round_trip_and_corrupt_file() {
 /// name.
 #[test]
 fn an_oversized_state_file_is_refused_unread_and_set_aside() {
-    let dir = std::env::temp_dir().join(format!("stature-state-big-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::scratch::fresh_dir("state-big");
     let path = dir.join("clip.y4m");
     // Sparse: no 17 MiB written.
     let f = std::fs::File::create(&path).unwrap();
@@ -297,5 +292,4 @@ fn an_oversized_state_file_is_refused_unread_and_set_aside() {
         state::MAX_STATE_BYTES + 1
     );
     assert!(!path.exists());
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -734,9 +734,7 @@ mod tests {
 
     #[test]
     fn a_fifo_nothing_reads_is_refused_at_open_and_one_that_is_read_works() {
-        let dir = std::env::temp_dir().join(format!("stature-sink-fifo-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::scratch::fresh_dir("sink-fifo");
         let fifo = dir.join("records");
         rustix::fs::mknodat(
             rustix::fs::CWD,
@@ -768,6 +766,5 @@ mod tests {
         sink.write_record(b"{\"type\":\"bye\"}\n").unwrap();
         drop(sink);
         assert_eq!(reader.join().unwrap(), "{\"type\":\"bye\"}\n");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -268,11 +268,8 @@ fn wrap_splits_at_spaces() {
     assert_eq!(got, ["aaa bbb", "ccc dddd", "e"]);
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("stature-snapshot-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> crate::scratch::ScratchDir {
+    crate::scratch::fresh_dir(&format!("snapshot-{name}"))
 }
 
 #[test]
@@ -310,7 +307,6 @@ fn snapshot_file_is_checked_at_creation_and_replaced_whole() {
     let f = SnapshotFile::create(&dir.join("t.png")).unwrap();
     drop(f);
     assert!(std::fs::read_dir(&dir).unwrap().count() == 1, "only s.png");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

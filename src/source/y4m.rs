@@ -668,7 +668,8 @@ mod tests {
     fn a_file_knows_its_length_a_stream_does_not() {
         let payload = vec![7u8; 4 * 2 + 2 * 2];
         let bytes = stream("YUV4MPEG2 W4 H2 F25:1 C420\n", &vec![payload; 5]);
-        let path = std::env::temp_dir().join(format!("stature-y4m-len-{}.y4m", std::process::id()));
+        let dir = crate::scratch::fresh_dir("y4m-len");
+        let path = dir.join("clip.y4m");
         std::fs::write(&path, &bytes).unwrap();
         let mut s = Y4mSource::open(path.to_str().unwrap()).unwrap();
         assert_eq!(s.length(), Some(5));
@@ -684,7 +685,6 @@ mod tests {
             Y4mSource::open(path.to_str().unwrap()).unwrap().length(),
             Some(4)
         );
-        std::fs::remove_file(&path).unwrap();
         assert_eq!(source(bytes).unwrap().length(), None);
     }
 
