@@ -1208,17 +1208,11 @@ fn train_refuses_bad_options_and_outputs_before_reading_data() {
             }
         }
         full.extend_from_slice(args);
-        let started = std::time::Instant::now();
         let o = run(&full);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(*code), "{args:?}: {err}");
         assert!(err.contains(want), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
-        assert!(
-            started.elapsed().as_secs() < 30,
-            "{args:?}: refused only after {:?}",
-            started.elapsed()
-        );
         // Nothing written, no temporary file left beside the outputs.
         let left: Vec<_> = std::fs::read_dir(&dir)
             .unwrap()
