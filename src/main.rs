@@ -10,6 +10,24 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+/// `eprintln!` that cannot panic: with stderr gone (a closed pipe, a full
+/// disk behind `2>file`) there is nowhere left to tell, and the exit code
+/// still says how the command ended. (`eprintln!` panics: exit 101.)
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// [`say!`] without the newline (progress lines that rewrite themselves).
+macro_rules! say_part {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 #[global_allocator]
 static GLOBAL: stature::alloc_count::CountingAlloc = stature::alloc_count::CountingAlloc;
 
@@ -329,13 +347,13 @@ fn config_cmd(a: ConfigArgs) -> i32 {
     let cfg = match Config::load(&path, "--check") {
         Ok(cfg) => cfg,
         Err(e) => {
-            eprintln!("error: {e}");
+            say!("error: {e}");
             return exit::BAD_INPUT;
         }
     };
     // A source this build lacks is exit code 3, as `run` says.
     if let Err(e) = source::check(&cfg.source.uri) {
-        eprintln!("error: {}: source.uri: {e}", path.display());
+        say!("error: {}: source.uri: {e}", path.display());
         return e.exit_code();
     }
     // What `run` would refuse at start-up, with its exit code: a config
@@ -346,7 +364,7 @@ fn config_cmd(a: ConfigArgs) -> i32 {
         check_run_paths(&cfg).and_then(|_snapshot| check_sinks(&cfg))
     };
     if let Err(r) = checked {
-        eprintln!("error: {}: {}", path.display(), r.message);
+        say!("error: {}: {}", path.display(), r.message);
         return r.code;
     }
     print_out(&format!("{}: ok\n", path.display())).map_or_else(|code| code, |()| exit::OK)
@@ -362,7 +380,7 @@ fn print_out(text: &str) -> Result<(), i32> {
     out.write_all(text.as_bytes())
         .and_then(|()| out.flush())
         .map_err(|e| {
-            eprintln!("error: cannot write to standard output: {e}");
+            say!("error: cannot write to standard output: {e}");
             exit::UNAVAILABLE
         })
 }
@@ -747,7 +765,7 @@ fn demo(a: DemoArgs) -> i32 {
     let sim = match SimSource::open_uri(&cfg.source.uri) {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("stature demo: {e}");
+            say!("stature demo: {e}");
             return e.exit_code();
         }
     };
@@ -758,7 +776,7 @@ fn demo(a: DemoArgs) -> i32 {
     // `-q`: only errors on stderr (and the comparison table, the demo's result).
     let quiet = a.verbosity.quiet;
     if !quiet {
-        eprintln!(
+        say!(
             "stature demo: running the pipeline on {} ({} frames); records go to stdout",
             cfg.source.uri, total
         );
@@ -804,7 +822,7 @@ fn demo(a: DemoArgs) -> i32 {
             heights_missing: "no person track was measured",
         },
     );
-    eprint!("{table}");
+    say_part!("{table}");
     code
 }
 
@@ -826,12 +844,12 @@ fn progress(what: &str, done: u64, total: u64, step: u64) {
     use std::io::IsTerminal;
     let pct = done * 100 / total.max(1);
     if std::io::stderr().is_terminal() {
-        eprint!("\r{what}: frame {done}/{total} ({pct}%)");
+        say_part!("\r{what}: frame {done}/{total} ({pct}%)");
         if done >= total {
-            eprintln!();
+            say!();
         }
     } else if done >= total || pct / 10 != (done.saturating_sub(step) * 100 / total.max(1)) / 10 {
-        eprintln!("{what}: frame {done}/{total} ({pct}%)");
+        say!("{what}: frame {done}/{total} ({pct}%)");
     }
 }
 
@@ -934,7 +952,7 @@ fn sim_cmd(a: SimArgs) -> i32 {
         return print_out(&list).map_or_else(|code| code, |()| exit::OK);
     }
     let Some(spec) = scene::find(&a.scene) else {
-        eprintln!(
+        say!(
             "error: unknown scene `{}` (see stature sim --list)",
             a.scene
         );
@@ -943,7 +961,7 @@ fn sim_cmd(a: SimArgs) -> i32 {
     if a.frames
         .is_some_and(|n| n == 0 || n > source::sim::MAX_FRAMES)
     {
-        eprintln!("error: --frames must be in 1..={}", source::sim::MAX_FRAMES);
+        say!("error: --frames must be in 1..={}", source::sim::MAX_FRAMES);
         return exit::BAD_INPUT;
     }
     // Two outputs into one file (or both on stdout) would interleave.
@@ -952,7 +970,7 @@ fn sim_cmd(a: SimArgs) -> i32 {
         for (o2, p2) in &outputs[i + 1..] {
             if let (Some(p1), Some(p2)) = (p1, p2) {
                 if same_output(p1, p2) {
-                    eprintln!(
+                    say!(
                         "error: {o1} {} and {o2} {} name the same output",
                         p1.display(),
                         p2.display()
@@ -969,16 +987,16 @@ fn sim_cmd(a: SimArgs) -> i32 {
     };
     let mut sim = SimSource::new(spec, &opts);
     let fail = |what: &dyn std::fmt::Display, e: std::io::Error| {
-        eprintln!("error: {what}: {e}");
+        say!("error: {what}: {e}");
         exit::UNAVAILABLE
     };
     if let Some(path) = &a.png {
         if let Err(e) = stature::snapshot::check_path(path) {
-            eprintln!("error: --png {}: {e}", path.display());
+            say!("error: --png {}: {e}", path.display());
             return exit::BAD_INPUT;
         }
         if a.png_frame >= sim.frames() {
-            eprintln!(
+            say!(
                 "error: --png-frame {} is past the clip ({} frames)",
                 a.png_frame,
                 sim.frames()
@@ -1002,7 +1020,7 @@ fn sim_cmd(a: SimArgs) -> i32 {
     }
     if a.out.is_none() && a.truth.is_none() {
         if a.png.is_none() {
-            eprintln!("error: nothing to do: give --out, --truth, --png or --list");
+            say!("error: nothing to do: give --out, --truth, --png or --list");
             return exit::BAD_INPUT;
         }
         return exit::OK;
@@ -1048,7 +1066,7 @@ fn sim_cmd(a: SimArgs) -> i32 {
         Ok(()) => exit::OK,
         // The error names the output (see `Named`).
         Err(e) => {
-            eprintln!("error: {e}");
+            say!("error: {e}");
             exit::UNAVAILABLE
         }
     }
@@ -1171,7 +1189,7 @@ fn train_cmd(a: TrainArgs) -> i32 {
     // (a training run takes minutes): the options, then the outputs, then
     // the data folder.
     let Some(data_dir) = a.data.clone().or_else(stature::dataset::shared_data_dir) else {
-        eprintln!("error: no data folder (give --data DIR)");
+        say!("error: no data folder (give --data DIR)");
         return exit::UNAVAILABLE;
     };
     if let Some(path) = &a.evaluate {
@@ -1182,12 +1200,12 @@ fn train_cmd(a: TrainArgs) -> i32 {
         let model = match cfg.load_model() {
             Ok(m) => m,
             Err(e) => {
-                eprintln!("error: {e}");
+                say!("error: {e}");
                 return exit::BAD_INPUT;
             }
         };
         if let Err(e) = check_data_dir(&data_dir) {
-            eprintln!("error: {e}");
+            say!("error: {e}");
             return exit::UNAVAILABLE;
         }
         let ev = eval::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
@@ -1199,7 +1217,7 @@ fn train_cmd(a: TrainArgs) -> i32 {
                 .map_or_else(|code| code, |()| exit::OK),
             // The data, or the ffmpeg that decodes its video, is missing.
             Err(e) => {
-                eprintln!("error: {e}");
+                say!("error: {e}");
                 exit::UNAVAILABLE
             }
         };
@@ -1207,14 +1225,14 @@ fn train_cmd(a: TrainArgs) -> i32 {
     let opts = match train_options(&a, data_dir) {
         Ok(o) => o,
         Err(e) => {
-            eprintln!("error: {e}");
+            say!("error: {e}");
             return exit::BAD_INPUT;
         }
     };
     let out = match stature::replace::probe(&a.out) {
         Ok(t) => t,
         Err(e) => {
-            eprintln!("error: --out {}: {e}", a.out.display());
+            say!("error: --out {}: {e}", a.out.display());
             return exit::UNAVAILABLE;
         }
     };
@@ -1222,19 +1240,19 @@ fn train_cmd(a: TrainArgs) -> i32 {
         Ok(t) => t,
         Err(e) => {
             let r = a.report.as_deref().unwrap_or(std::path::Path::new(""));
-            eprintln!("error: --report {}: {e}", r.display());
+            say!("error: --report {}: {e}", r.display());
             return exit::UNAVAILABLE;
         }
     };
     if report_path.as_ref() == Some(&out) {
-        eprintln!(
+        say!(
             "error: --report {} is the weights file (--out): give another path",
             a.report.as_deref().unwrap_or(&out).display()
         );
         return exit::BAD_INPUT;
     }
     if let Err(e) = check_data_dir(&opts.data_dir) {
-        eprintln!("error: {e}");
+        say!("error: {e}");
         return exit::UNAVAILABLE;
     }
     let (model, report) = match train::train(&opts) {
@@ -1242,7 +1260,7 @@ fn train_cmd(a: TrainArgs) -> i32 {
         // The options were checked above: what fails now is the data (a
         // file missing or unreadable, ffmpeg absent).
         Err(e) => {
-            eprintln!("error: {e}");
+            say!("error: {e}");
             return exit::UNAVAILABLE;
         }
     };
@@ -1260,19 +1278,19 @@ fn train_cmd(a: TrainArgs) -> i32 {
             Ok(s) => staged.push((s, path)),
             // (The files staged so far are removed as `staged` drops.)
             Err(e) => {
-                eprintln!("error: cannot write {}: {e}", path.display());
+                say!("error: cannot write {}: {e}", path.display());
                 return exit::UNAVAILABLE;
             }
         }
     }
     for (s, path) in staged {
         if let Err(e) = s.commit() {
-            eprintln!("error: cannot write {}: {e}", path.display());
+            say!("error: cannot write {}: {e}", path.display());
             return exit::UNAVAILABLE;
         }
     }
     for path in report_path.iter().chain([&out]) {
-        eprintln!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     }
     // Printed last: a stdout that fails costs the printout, not the files.
     print_out(&report).map_or_else(|code| code, |()| exit::OK)

@@ -1248,6 +1248,26 @@ fn an_unwritable_stdout_is_exit_3_with_the_reason() {
     }
 }
 
+/// With stderr on a full disk (or a closed pipe) every command still ends
+/// with its own exit code; `eprintln!` panicked (exit 101).
+#[test]
+fn an_unwritable_stderr_changes_no_exit_code() {
+    for (args, code) in [
+        (&["demo", "--frames", "5"][..], 0),
+        (&["config", "--check", "/nonexistent.toml"], 2),
+        (&["sim", "--scene", "nosuch", "--out", "-"], 2),
+    ] {
+        let o = Command::new(stature_bin())
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(std::fs::File::create("/dev/full").unwrap()))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(code), "{args:?}");
+    }
+}
+
 /// Before: `config --check /dev/zero` read until the OOM killer came.
 #[test]
 fn config_and_weights_files_are_read_up_to_a_size_cap() {
