@@ -169,6 +169,18 @@ impl Pipeline {
                     return c;
                 }
             };
+            if file.in_use_elsewhere() {
+                log::warn!(
+                    "calibration state {}: {}; this run resumes from it but will not update it",
+                    cfg.run.state,
+                    crate::calibrate::state::IN_USE
+                );
+            } else if let Some(e) = file.lock_error() {
+                log::warn!(
+                    "calibration state {}: {e}; two stature processes on it would tear it",
+                    cfg.run.state
+                );
+            }
             // Why the file cannot be resumed from, and the suffix it is
             // renamed aside with.
             let unusable = match file.load() {

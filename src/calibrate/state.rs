@@ -8,6 +8,18 @@
 //! Writing serialises into a buffer allocated once, so the periodic writes
 //! the loop makes do not allocate (paths shorter than a few hundred bytes
 //! are converted on the stack by `std`).
+//!
+//! One process writes a state file at a time. Two writers would share the
+//! temporary file `PATH.stature-tmp`: one renames it into place while the
+//! other is still writing into the same inode, and readers see a torn
+//! file (an installer's `stature snapshot` with the service's config,
+//! while the service runs). So [`StateFile::open`] takes an exclusive
+//! advisory lock (`flock`) on `PATH.stature-lock` beside the state file and
+//! holds it as long as the `StateFile` lives; a process that finds it
+//! taken resumes from the state but never writes or moves it
+//! ([`StateFile::in_use_elsewhere`]). The lock is on a file of its own
+//! because every write replaces the state file's inode, and with it any
+//! lock on it.
 
 use super::geometry::Anchor;
 use super::Slot;
@@ -23,6 +35,9 @@ pub const STATE_VERSION: u32 = 1;
 /// The largest file read as a state file: about 110 bytes per anchor, so
 /// room for 150,000 anchors, far more than any configuration keeps.
 pub const MAX_STATE_BYTES: u64 = 16 << 20;
+
+/// Why a process that does not hold the lock leaves the state alone.
+pub const IN_USE: &str = "in use by another stature process";
 
 /// A loaded state file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -100,6 +115,91 @@ pub struct StateFile {
     tmp: PathBuf,
     dir: PathBuf,
     buf: Vec<u8>,
+    lock: Lock,
+}
+
+/// Whether this process may write the state file.
+#[derive(Debug)]
+enum Lock {
+    /// Not asked for ([`StateFile::new`]), or the file system cannot lock
+    /// (the error, for the log): writes go ahead as they did before locks.
+    None(Option<std::io::Error>),
+    /// This process holds the lock on this open file: it writes the state.
+    /// Never read: closing the file (dropping the `StateFile`) releases it.
+    Held(#[allow(dead_code)] rustix::fd::OwnedFd),
+    /// Another process holds it: the state is read, never written.
+    Busy,
+}
+
+/// `PATH.stature-lock`: the lock file beside `path`.
+pub fn lock_beside(path: &Path) -> PathBuf {
+    let mut lock = path.as_os_str().to_owned();
+    lock.push(".stature-lock");
+    PathBuf::from(lock)
+}
+
+/// Attempts at the lock before a process leaves the state to its holder,
+/// [`LOCK_RETRY`] apart: a `config --check`, or the start-up check of a
+/// run, holds it for the moment it takes to create and remove the
+/// temporary file, and must not turn a service starting just then into a
+/// reader for its whole run.
+const LOCK_TRIES: u32 = 10;
+/// Time between attempts at the lock.
+const LOCK_RETRY: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// Opens (creating it when missing) the lock file `path` and takes its
+/// exclusive lock, without waiting more than [`LOCK_TRIES`] attempts.
+/// Opened read-only: `flock` needs no write access, and a lock file an
+/// installer created as root must still be usable by the service's user.
+fn take_lock(path: &Path) -> std::io::Result<Lock> {
+    use rustix::fs::{flock, fstat, open, stat, FlockOperation, Mode, OFlags};
+    for _ in 0..LOCK_TRIES {
+        let fd = open(
+            path,
+            OFlags::RDONLY | OFlags::CREATE | OFlags::CLOEXEC,
+            Mode::from_raw_mode(0o644),
+        )
+        .map_err(|e| {
+            let e = std::io::Error::from(e);
+            std::io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
+        })?;
+        match flock(&fd, FlockOperation::NonBlockingLockExclusive) {
+            Ok(()) => {
+                // The holder removes the lock file when it is done (see
+                // `Drop`): a lock taken on the file it removed locks
+                // nothing another process can see, so take the new one.
+                let same = match (fstat(&fd), stat(path)) {
+                    (Ok(a), Ok(b)) => a.st_dev == b.st_dev && a.st_ino == b.st_ino,
+                    _ => false,
+                };
+                if same {
+                    return Ok(Lock::Held(fd));
+                }
+            }
+            Err(rustix::io::Errno::WOULDBLOCK) => std::thread::sleep(LOCK_RETRY),
+            // NFS without lockd, some FUSE file systems: one process
+            // alone still works as it always did.
+            Err(e) => {
+                return Ok(Lock::None(Some(std::io::Error::new(
+                    std::io::Error::from(e).kind(),
+                    format!("cannot lock {}: {e}", path.display()),
+                ))))
+            }
+        }
+    }
+    Ok(Lock::Busy)
+}
+
+impl Drop for StateFile {
+    /// The holder removes the lock file while it still holds the lock, so
+    /// a check (`config --check`) leaves nothing behind. Safe because a
+    /// process that then gets the lock of the removed file sees that it is
+    /// no longer at the path and takes the lock of the path's new file.
+    fn drop(&mut self) {
+        if matches!(self.lock, Lock::Held(_)) {
+            let _ = std::fs::remove_file(lock_beside(&self.path));
+        }
+    }
 }
 
 /// Parses the bytes of a state file (the fuzzed entry point of [`StateFile::load`]).
@@ -128,16 +228,50 @@ impl StateFile {
             tmp: crate::replace::tmp_beside(path),
             dir,
             buf: Vec::with_capacity(capacity),
+            lock: Lock::None(None),
         }
     }
 
     /// A state file at `path`, checked now so that a run does not find out
     /// at its first write: a symbolic link is followed (the file it points
-    /// to is the one replaced), anything but a regular file is refused, and
-    /// `PATH.stature-tmp` is created and removed in the target's directory.
+    /// to is the one replaced), anything but a regular file is refused, the
+    /// lock `PATH.stature-lock` is taken (see the module's text) and, when
+    /// this process got it, `PATH.stature-tmp` is created and removed in
+    /// the target's directory. When another process holds the lock the
+    /// temporary file is not touched (it may be that process's write in
+    /// progress) and the result only reads ([`StateFile::in_use_elsewhere`]).
+    /// The lock lasts as long as the result: a check that drops it at once
+    /// (`config --check`) leaves the state to the run that comes next.
     pub fn open(path: &Path, capacity: usize) -> Result<Self, StateError> {
-        let target = crate::replace::probe(path).map_err(StateError::Io)?;
-        Ok(StateFile::new(&target, capacity))
+        let target = crate::replace::target(path).map_err(StateError::Io)?;
+        if target.file_name().is_none() {
+            return Err(StateError::Io(std::io::Error::other("not a file name")));
+        }
+        let mut file = StateFile::new(&target, capacity);
+        // Taken before the probe: the probe's temporary file is the
+        // holder's, and dropping `file` on an error removes the lock file.
+        file.lock = take_lock(&lock_beside(&target)).map_err(StateError::Io)?;
+        if !file.in_use_elsewhere() {
+            crate::replace::probe(&target).map_err(StateError::Io)?;
+        }
+        Ok(file)
+    }
+
+    /// Another stature process holds the state's lock: this one may read
+    /// the state but [`StateFile::write`] and [`StateFile::set_aside`]
+    /// leave it alone.
+    pub fn in_use_elsewhere(&self) -> bool {
+        matches!(self.lock, Lock::Busy)
+    }
+
+    /// Why the state could not be locked, when the file system does not
+    /// support locks (the state is then written unlocked, as by one
+    /// process alone).
+    pub fn lock_error(&self) -> Option<&std::io::Error> {
+        match &self.lock {
+            Lock::None(e) => e.as_ref(),
+            _ => None,
+        }
     }
 
     /// Moves a file that cannot be resumed from out of the way, so that the
@@ -145,7 +279,13 @@ impl StateFile {
     /// someone's config or video; a state of another frame size is still
     /// good for that size): renamed to `PATH.SUFFIX`, or `PATH.SUFFIX.N`
     /// (N = 1..=99) when that exists. Returns the new path.
+    ///
+    /// Refused when another process holds the lock: the file is that
+    /// process's to keep or move.
     pub fn set_aside(&self, suffix: &str) -> std::io::Result<PathBuf> {
+        if self.in_use_elsewhere() {
+            return Err(std::io::Error::other(IN_USE));
+        }
         for n in 0..100 {
             let mut aside = self.path.as_os_str().to_owned();
             aside.push(".");
@@ -198,7 +338,11 @@ impl StateFile {
     }
 
     /// Writes atomically: temp file, fsync, rename, fsync of the directory.
+    /// Does nothing when another process holds the lock.
     pub(super) fn write(&mut self, view: &StateView<'_>) -> Result<(), StateError> {
+        if self.in_use_elsewhere() {
+            return Ok(());
+        }
         self.buf.clear();
         serde_json::to_writer(&mut self.buf, view)
             .map_err(|e| StateError::Corrupt(e.to_string()))?;

@@ -263,6 +263,75 @@ fn state_file_round_trip_and_corrupt_file() {
     ));
 }
 
+/// Two processes on one state file (an installer's `stature snapshot` with
+/// the service's config while the service runs): the first to open it
+/// writes it, the second resumes from it but never writes or moves it.
+/// Before, both wrote through the one temporary file and readers saw torn
+/// files. `flock` locks belong to an open file, so two opens in one
+/// process conflict as two processes do.
+#[test]
+fn only_the_first_to_open_a_state_file_writes_it() {
+    let dir = crate::scratch::fresh_dir("state-lock");
+    let path = dir.join("shared.json");
+    let lock = dir.join("shared.json.stature-lock");
+    let tmp = dir.join("shared.json.stature-tmp");
+    let mut rng = Rng::new(2);
+    let cam = random_camera(&mut rng, 640, 480);
+    let cfg = CalibrateConfig {
+        camera_height_m: cam.height,
+        ..Default::default()
+    };
+    let obs = walk(&cam, &SynthScene::default(), &mut Rng::new(8));
+    let (early, late) = obs.split_at(obs.len() / 2);
+    let feed = |c: &mut Calibrator, obs: &[synth::SynthObs]| {
+        for o in obs {
+            c.observe(o.frame, o.id, o.hf);
+            c.update(o.frame);
+        }
+        c.finish(obs.last().unwrap().frame);
+    };
+    let mut first = Calibrator::new(&cfg, 640, 480);
+    first.state = Some(state::StateFile::open(&path, 1 << 20).unwrap());
+    assert!(!first.state.as_ref().unwrap().in_use_elsewhere());
+    assert!(lock.exists());
+    feed(&mut first, early);
+    let written = std::fs::read(&path).unwrap();
+    // The first one's write in progress: the second's start-up check must
+    // neither truncate nor remove its temporary file.
+    std::fs::write(&tmp, b"partial").unwrap();
+    let file = state::StateFile::open(&path, 1 << 20).unwrap();
+    assert!(file.in_use_elsewhere());
+    assert_eq!(std::fs::read(&tmp).unwrap(), b"partial");
+    std::fs::remove_file(&tmp).unwrap();
+    // It resumes from the state...
+    let mut second = Calibrator::new(&cfg, 640, 480);
+    let n = second.resume(&file.load().unwrap().unwrap()).unwrap();
+    assert_eq!(n, first.anchor_count());
+    // ...but its writes leave the file as the first wrote it.
+    second.state = Some(file);
+    feed(&mut second, late);
+    assert!(second.anchor_count() > n);
+    assert_eq!(std::fs::read(&path).unwrap(), written);
+    assert!(!tmp.exists());
+    // Nor does it move the file aside (its resume failed, say).
+    let e = second.state.as_ref().unwrap().set_aside("corrupt");
+    assert!(e.unwrap_err().to_string().contains(state::IN_USE));
+    assert_eq!(std::fs::read(&path).unwrap(), written);
+    // The first one goes on writing.
+    feed(&mut first, late);
+    assert_ne!(std::fs::read(&path).unwrap(), written);
+    // Once it is done, the next one to open the state writes it, although
+    // the second still holds the removed lock file open.
+    drop(first);
+    assert!(!lock.exists(), "the holder removes its lock file");
+    let third = state::StateFile::open(&path, 0).unwrap();
+    assert!(!third.in_use_elsewhere());
+    assert!(state::StateFile::open(&path, 0).unwrap().in_use_elsewhere());
+    drop(third);
+    drop(second);
+    assert!(!lock.exists());
+}
+
 /// A file too large to be a state file is refused unread (a mistyped
 /// `--state` may name a video) and renamed aside, never over an existing
 /// name.

@@ -189,7 +189,7 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "/nonexistent-dir/x.state".into(),
             ],
             3,
-            "cannot create /nonexistent-dir/x.state.stature-tmp",
+            "cannot create /nonexistent-dir/x.state.stature-lock",
         ),
         (
             vec!["--config".into(), both_scales.display().to_string()],

@@ -39,3 +39,4 @@ mod mqtt;
 mod sim_alloc;
 mod sim_geometry;
 mod snapshot;
+mod state_lock;
