@@ -510,8 +510,6 @@ fn hint(e: &ConnectionError) -> &'static str {
     }
 }
 
-/// A rustls client configuration with the ring provider, trusting `ca`
-/// (a PEM file) or, when empty, the system's CA certificates.
 /// The local part of [`MqttSink::open`], which cannot wait for the
 /// broker: the TLS roots (the `ca=` file, or the system's). What `stature
 /// config --check` asks of an `mqtt:` sink without connecting.
@@ -522,8 +520,55 @@ pub fn check_local(settings: &MqttSettings) -> io::Result<()> {
     Ok(())
 }
 
-fn tls_config(ca: &str) -> io::Result<rustls::ClientConfig> {
+/// The most a `ca=` file may hold. Mozilla's whole bundle (about 150
+/// roots, what a system store holds) is about 220 KiB of PEM; a broker's CA
+/// is one or two certificates of 1–2 KiB each. 1 MiB leaves room for any
+/// real bundle and stops a mistyped path (a video, `/dev/zero`) from taking
+/// all the memory there is.
+pub const MAX_CA_BYTES: u64 = 1 << 20;
+
+/// The certificates of the `ca=` file `ca`. Only a regular file (after
+/// symbolic links) is read: opening a FIFO blocks until something writes
+/// to it, where no signal ends the wait, and a device such as `/dev/zero`
+/// never ends; both are refused before the open.
+fn ca_certificates(ca: &str) -> io::Result<Vec<rustls::pki_types::CertificateDer<'static>>> {
     use rustls::pki_types::{pem::PemObject, CertificateDer};
+    use std::os::unix::fs::FileTypeExt;
+    let bad = |msg: &dyn std::fmt::Display| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("MQTT CA file `{ca}`: {msg}"),
+        )
+    };
+    let kind = std::fs::metadata(ca).map_err(|e| bad(&e))?.file_type();
+    if !kind.is_file() {
+        let what = if kind.is_dir() {
+            "a directory"
+        } else if kind.is_fifo() {
+            "a FIFO"
+        } else if kind.is_char_device() {
+            "a character device"
+        } else if kind.is_block_device() {
+            "a block device"
+        } else if kind.is_socket() {
+            "a socket"
+        } else {
+            "something else"
+        };
+        return Err(bad(&format!(
+            "not a regular file ({what}): give a PEM file with the broker's CA certificate(s)"
+        )));
+    }
+    let bytes =
+        crate::replace::read_capped(std::path::Path::new(ca), MAX_CA_BYTES).map_err(|e| bad(&e))?;
+    CertificateDer::pem_slice_iter(&bytes)
+        .map(|c| c.map(CertificateDer::into_owned).map_err(|e| bad(&e)))
+        .collect()
+}
+
+/// A rustls client configuration with the ring provider, trusting `ca`
+/// (a PEM file) or, when empty, the system's CA certificates.
+fn tls_config(ca: &str) -> io::Result<rustls::ClientConfig> {
     let bad = |msg: String| io::Error::new(io::ErrorKind::InvalidInput, msg);
     let mut roots = rustls::RootCertStore::empty();
     if ca.is_empty() {
@@ -538,10 +583,7 @@ fn tls_config(ca: &str) -> io::Result<rustls::ClientConfig> {
             ));
         }
     } else {
-        let certs = CertificateDer::pem_file_iter(ca)
-            .map_err(|e| bad(format!("MQTT CA file `{ca}`: {e}")))?;
-        for cert in certs {
-            let cert = cert.map_err(|e| bad(format!("MQTT CA file `{ca}`: {e}")))?;
+        for cert in ca_certificates(ca)? {
             roots
                 .add(cert)
                 .map_err(|e| bad(format!("MQTT CA file `{ca}`: {e}")))?;
@@ -556,4 +598,109 @@ fn tls_config(ca: &str) -> io::Result<rustls::ClientConfig> {
         .map_err(|e| bad(format!("MQTT TLS: {e}")))?
         .with_root_certificates(roots)
         .with_no_client_auth())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicBool;
+
+    fn refusal(ca: &std::path::Path) -> String {
+        match tls_config(ca.to_str().unwrap()) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("`{}` must be refused as a CA file", ca.display()),
+        }
+    }
+
+    fn fifo(path: &std::path::Path) {
+        rustix::fs::mknodat(
+            rustix::fs::CWD,
+            path,
+            rustix::fs::FileType::Fifo,
+            rustix::fs::Mode::from_raw_mode(0o600),
+            0,
+        )
+        .unwrap();
+    }
+
+    /// Runs `check` while a thread stands by to open `fifo` for writing
+    /// and close it again, which ends an open(2) that waits for a writer
+    /// (before the fix the check blocked there, and the test would hang
+    /// instead of failing).
+    fn with_fifo_writer<T>(fifo: &std::path::Path, check: impl FnOnce() -> T) -> T {
+        let done = Arc::new(AtomicBool::new(false));
+        let writer = std::thread::spawn({
+            let (fifo, done) = (fifo.to_path_buf(), done.clone());
+            move || {
+                use std::os::unix::fs::OpenOptionsExt;
+                // A non-blocking open for writing fails (ENXIO) until a
+                // reader waits in its open.
+                while !done.load(Ordering::SeqCst) {
+                    let w = std::fs::OpenOptions::new()
+                        .write(true)
+                        .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+                        .open(&fifo);
+                    if w.is_ok() {
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            }
+        });
+        let out = check();
+        done.store(true, Ordering::SeqCst);
+        writer.join().unwrap();
+        out
+    }
+
+    #[test]
+    fn a_ca_fifo_is_refused_without_opening_it() {
+        let dir = crate::scratch::fresh_dir("mqtt-ca-fifo");
+        let ca = dir.join("ca.fifo");
+        fifo(&ca);
+        // Before: open(2) waited for a writer, and no signal ended it.
+        let e = with_fifo_writer(&ca, || refusal(&ca));
+        assert!(
+            e.contains(&format!("MQTT CA file `{}`", ca.display())),
+            "{e}"
+        );
+        assert!(e.contains("not a regular file (a FIFO)"), "{e}");
+        // The same through a symbolic link: it is followed.
+        let link = dir.join("ca.pem");
+        std::os::unix::fs::symlink(&ca, &link).unwrap();
+        let e = with_fifo_writer(&ca, || refusal(&link));
+        assert!(e.contains("not a regular file (a FIFO)"), "{e}");
+    }
+
+    #[test]
+    fn a_ca_device_is_refused_without_reading_it() {
+        // Before: /dev/zero was read until the OOM killer came (~24 GB).
+        let e = refusal(std::path::Path::new("/dev/zero"));
+        assert!(e.contains("MQTT CA file `/dev/zero`"), "{e}");
+        assert!(e.contains("not a regular file (a character device)"), "{e}");
+        let e = refusal(std::path::Path::new("/"));
+        assert!(e.contains("not a regular file (a directory)"), "{e}");
+    }
+
+    #[test]
+    fn a_ca_file_over_the_cap_is_refused_naming_the_cap() {
+        let dir = crate::scratch::fresh_dir("mqtt-ca-large");
+        let ca = dir.join("ca.pem");
+        // Past the cap by one byte; the cap itself still gets parsed.
+        std::fs::write(&ca, vec![b'A'; MAX_CA_BYTES as usize + 1]).unwrap();
+        let e = refusal(&ca);
+        assert!(
+            e.contains(&format!("MQTT CA file `{}`", ca.display())),
+            "{e}"
+        );
+        assert!(e.contains("larger than 1 MiB"), "{e}");
+        std::fs::write(&ca, vec![b'A'; MAX_CA_BYTES as usize]).unwrap();
+        let e = refusal(&ca);
+        assert!(e.contains("holds no PEM certificate"), "{e}");
+        // A link to a regular file is followed and the file read.
+        let link = dir.join("link.pem");
+        std::os::unix::fs::symlink(&ca, &link).unwrap();
+        let e = refusal(&link);
+        assert!(e.contains("holds no PEM certificate"), "{e}");
+    }
 }
