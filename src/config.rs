@@ -256,34 +256,55 @@ impl ReportConfig {
 }
 
 /// Where a sink writes, for the duplicate check: file and serial paths as
-/// the file system resolves them (`a.jsonl`, `./a.jsonl` and a symlink to
-/// it are one file; a file not created yet is resolved through its
-/// directory), a serial port whatever its baud rate. `None` for MQTT.
-/// (A resolved path starts with `/`, so it never equals `stdout` or a
-/// `udp:` key.)
+/// the file system resolves them ([`resolved_path`]), a serial port
+/// whatever its baud rate, a UDP destination as the address the sink will
+/// send to (`localhost:9000` and `127.0.0.1:9000` are one; an IPv4-mapped
+/// IPv6 address is its IPv4 one). `None` for MQTT. (A resolved path starts
+/// with `/`, so it never equals `stdout` or a `udp:` key.)
 fn destination(spec: &crate::report::sink::SinkSpec) -> Option<String> {
     use crate::report::sink::SinkSpec;
-    use std::path::Path;
-    let resolved = |path: &str| {
-        let p = Path::new(path);
-        std::fs::canonicalize(p)
-            .or_else(|_| {
-                let dir = match p.parent() {
-                    Some(d) if !d.as_os_str().is_empty() => d,
-                    _ => Path::new("."),
-                };
-                Ok::<_, std::io::Error>(
-                    std::fs::canonicalize(dir)?.join(p.file_name().unwrap_or_default()),
-                )
-            })
-            .map_or_else(|_| path.to_string(), |p| p.display().to_string())
-    };
+    use std::net::{IpAddr, SocketAddr, ToSocketAddrs};
     match spec {
         SinkSpec::Stdout => Some("stdout".into()),
-        SinkSpec::File(path) | SinkSpec::Serial { path, .. } => Some(resolved(path)),
-        SinkSpec::Udp(addr) => Some(format!("udp:{addr}")),
+        SinkSpec::File(path) | SinkSpec::Serial { path, .. } => Some(resolved_path(path)),
+        SinkSpec::Udp(addr) => {
+            // The sink sends to the first address (`Sink::open_with`); a
+            // name that does not resolve now is compared as written (the
+            // sink's own open reports it).
+            let first = addr.to_socket_addrs().ok().and_then(|mut a| a.next());
+            Some(match first {
+                Some(SocketAddr::V6(a)) if a.ip().to_ipv4_mapped().is_some() => {
+                    let v4 = a.ip().to_ipv4_mapped().map(IpAddr::V4);
+                    format!(
+                        "udp:{}",
+                        SocketAddr::new(v4.unwrap_or(IpAddr::V6(*a.ip())), a.port())
+                    )
+                }
+                Some(a) => format!("udp:{a}"),
+                None => format!("udp:{addr}"),
+            })
+        }
         SinkSpec::Mqtt(_) => None,
     }
+}
+
+/// `path` as the file system resolves it: symbolic links and `.`/`..`
+/// followed, so `a.jsonl`, `./a.jsonl` and a link to it are one file; a
+/// file not created yet is resolved through its directory; as written when
+/// neither resolves.
+fn resolved_path(path: &str) -> String {
+    let p = Path::new(path);
+    std::fs::canonicalize(p)
+        .or_else(|_| {
+            let dir = match p.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            Ok::<_, std::io::Error>(
+                std::fs::canonicalize(dir)?.join(p.file_name().unwrap_or_default()),
+            )
+        })
+        .map_or_else(|_| path.to_string(), |p| p.display().to_string())
 }
 
 impl BoardConfig {
@@ -361,16 +382,61 @@ impl Config {
             self.report.status_interval_s,
             0.1..=3600.0,
         )?;
-        self.report.sink_specs()?;
+        let specs = self.report.sink_specs()?;
         self.report.mqtt.validate()?;
         crate::snapshot::check_path(Path::new(&self.run.snapshot))
             .map_err(|e| ConfigError::invalid("run.snapshot", &self.run.snapshot, e))?;
+        self.check_outputs_apart(&specs)?;
         self.detect.validate()?;
         self.classify.validate()?;
         self.track.validate()?;
         self.calibrate.validate()?;
         self.measure.validate()?;
         self.board.validate()?;
+        Ok(())
+    }
+}
+
+impl Config {
+    /// The state file, the snapshot and the `file:` sinks must be different
+    /// files: the state loader would call a record stream corrupt and set
+    /// it aside, and two files replaced through one `PATH.stature-tmp`
+    /// overwrite each other.
+    fn check_outputs_apart(
+        &self,
+        specs: &[crate::report::sink::SinkSpec],
+    ) -> Result<(), ConfigError> {
+        use crate::report::sink::SinkSpec;
+        let mut outputs: Vec<(&str, &str)> = Vec::new();
+        if !self.run.state.is_empty() {
+            outputs.push(("run.state", &self.run.state));
+        }
+        if !self.run.snapshot.is_empty() {
+            outputs.push(("run.snapshot", &self.run.snapshot));
+        }
+        for spec in specs {
+            if let SinkSpec::File(path) = spec {
+                outputs.push(("report.sinks", path));
+            }
+        }
+        let resolved: Vec<String> = outputs.iter().map(|(_, p)| resolved_path(p)).collect();
+        for (i, r) in resolved.iter().enumerate() {
+            if let Some(j) = resolved[..i].iter().position(|e| e == r) {
+                let (key, value) = outputs[i];
+                let other = match outputs[j].0 {
+                    "report.sinks" => "a report.sinks file",
+                    k => k,
+                };
+                return Err(ConfigError::invalid(
+                    key,
+                    value,
+                    format!(
+                        "the same file as {other} `{}` (each would overwrite the other)",
+                        outputs[j].1
+                    ),
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -491,6 +557,62 @@ mod tests {
         }
         let (a, b) = (format!("file:{d}/a.jsonl"), format!("file:{d}/b.jsonl"));
         assert!(sinks(a, b).sink_specs().is_ok());
+    }
+
+    #[test]
+    fn one_udp_destination_under_two_names_is_one_sink() {
+        use std::net::ToSocketAddrs;
+        // Whichever address the resolver gives first (127.0.0.1 or ::1).
+        let localhost = ("localhost", 19000)
+            .to_socket_addrs()
+            .unwrap()
+            .next()
+            .unwrap();
+        for (a, b) in [
+            (format!("udp:{localhost}"), "udp:localhost:19000"),
+            ("udp:127.0.0.1:19000".into(), "udp:[::ffff:127.0.0.1]:19000"),
+        ] {
+            let r = ReportConfig {
+                sinks: vec![a.clone(), b.into()],
+                ..ReportConfig::default()
+            };
+            let e = r.sink_specs().expect_err(b);
+            assert!(e.to_string().contains("given twice"), "{a} {b}: {e}");
+        }
+        let r = ReportConfig {
+            sinks: vec!["udp:127.0.0.1:19000".into(), "udp:127.0.0.1:19001".into()],
+            ..ReportConfig::default()
+        };
+        assert!(r.sink_specs().is_ok());
+    }
+
+    #[test]
+    fn state_snapshot_and_file_sinks_are_different_files() {
+        let dir = crate::scratch::fresh_dir("outputs-apart");
+        let d = dir.display();
+        let with = |state: &str, snapshot: &str, sink: &str| {
+            let mut c = Config::default();
+            c.run.state = state.into();
+            c.run.snapshot = snapshot.into();
+            c.report.sinks = vec![sink.into()];
+            c.validate()
+        };
+        let e = with(&format!("{d}/x.jsonl"), "", &format!("file:{d}/./x.jsonl")).unwrap_err();
+        assert_eq!(e.key, "report.sinks");
+        assert!(e.to_string().contains("the same file as run.state"), "{e}");
+        let e = with(&format!("{d}/x.png"), &format!("{d}/x.png"), "stdout").unwrap_err();
+        assert_eq!(e.key, "run.snapshot");
+        let e = with("", &format!("{d}/s.png"), &format!("file:{d}/s.png")).unwrap_err();
+        assert!(
+            e.to_string().contains("the same file as run.snapshot"),
+            "{e}"
+        );
+        with(
+            &format!("{d}/st.json"),
+            &format!("{d}/s.png"),
+            &format!("file:{d}/r.jsonl"),
+        )
+        .unwrap();
     }
 
     #[test]

@@ -455,6 +455,19 @@ fn check_sinks(cfg: &Config) -> Result<(), Refused> {
     Ok(())
 }
 
+/// A path option's value as the text a config value holds. A name that is
+/// not UTF-8 is refused: `display()` would turn its bytes into U+FFFD and
+/// the run would write a file of another name.
+fn utf8_path(p: &std::path::Path, option: &str) -> Result<String, ConfigError> {
+    p.to_str().map(str::to_string).ok_or_else(|| {
+        ConfigError::invalid(
+            option,
+            p.display(),
+            "a path that is not UTF-8 (the name would change)",
+        )
+    })
+}
+
 /// Builds the configuration from the file and the command line
 /// (`snapshot`: the path given with `--snapshot` or `--out`, and which).
 /// An error in a value the command line set names the option, not the
@@ -478,18 +491,18 @@ fn resolve_config(a: &RunArgs, snapshot: Option<(&str, &PathBuf)>) -> Result<Con
         cfg.report.format = f;
     }
     if let Some(s) = &a.state {
-        cfg.run.state = s.display().to_string();
+        cfg.run.state = utf8_path(s, "--state")?;
         from_options.push(("run.state", "--state"));
     }
     if let Some(n) = a.frames {
         cfg.run.frames = n;
     }
     if let Some(w) = &a.weights {
-        cfg.classify.weights = w.display().to_string();
+        cfg.classify.weights = utf8_path(w, "--weights")?;
         from_options.push(("classify.weights", "--weights"));
     }
     if let Some((option, p)) = snapshot {
-        cfg.run.snapshot = p.display().to_string();
+        cfg.run.snapshot = utf8_path(p, option)?;
         from_options.push(("run.snapshot", option));
     }
     from_options.extend(a.scale.apply(&mut cfg));
@@ -778,7 +791,8 @@ fn demo(a: DemoArgs) -> i32 {
     if !quiet {
         say!(
             "stature demo: running the pipeline on {} ({} frames); records go to stdout",
-            cfg.source.uri, total
+            cfg.source.uri,
+            total
         );
     }
     let mut sim = sim;

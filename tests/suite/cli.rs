@@ -1248,6 +1248,41 @@ fn an_unwritable_stdout_is_exit_3_with_the_reason() {
     }
 }
 
+/// Before: `--state x --report file:x` let the state loader set the
+/// record stream aside as a corrupt state (every record went to
+/// `x.corrupt`), and a state path that is not UTF-8 was written under
+/// another name (U+FFFD for the bad bytes).
+#[test]
+fn run_outputs_are_refused_when_they_collide_or_cannot_be_named() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = common::fresh_dir("cli-run_outputs_collide");
+    let x = dir.join("x.jsonl");
+    let o = run(&[
+        "run",
+        "--source",
+        "sim:plaza?seed=1&frames=3",
+        "--state",
+        x.to_str().unwrap(),
+        "--report",
+        &format!("file:{}", x.display()),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("the same file as run.state"), "{err}");
+    let bad = dir.join(std::ffi::OsStr::from_bytes(b"st\xff.json"));
+    let o = Command::new(stature_bin())
+        .args(["run", "--source", "sim:plaza?seed=1&frames=3", "--state"])
+        .arg(&bad)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("not UTF-8"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert!(left.is_empty(), "nothing written: {left:?}");
+}
+
 /// With stderr on a full disk (or a closed pipe) every command still ends
 /// with its own exit code; `eprintln!` panicked (exit 101).
 #[test]
