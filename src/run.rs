@@ -161,8 +161,9 @@ impl Pipeline {
         c.set_fps(stream_fps(info));
         if !cfg.run.state.is_empty() {
             let k = cfg.calibrate.tracks * cfg.calibrate.anchors_per_track;
-            // About 110 bytes of JSON per anchor.
-            let file = match StateFile::open(std::path::Path::new(&cfg.run.state), 4096 + 128 * k) {
+            // About 135 bytes of JSON per anchor, under 200 at worst: the
+            // buffer never grows, so the writes do not allocate.
+            let file = match StateFile::open(std::path::Path::new(&cfg.run.state), 4096 + 200 * k) {
                 Ok(f) => f,
                 Err(e) => {
                     log::warn!("calibration state {}: {e}; not kept", cfg.run.state);

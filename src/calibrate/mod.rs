@@ -41,6 +41,17 @@ use geometry::{Anchor, Degeneracy, HeadFoot, Normaliser, ViewGeometry};
 use serde::{Deserialize, Serialize};
 use vertical::VerticalParams;
 
+/// The most anchors a configuration may keep (`tracks × anchors_per_track`).
+/// Every refit goes over all of them, and the loop runs at the pace of the
+/// refits: a 500-frame `sim:plaza` run (640x480, an AMD EPYC core) resumed
+/// with a full store processed 322 frames/s with no store, 141 with 2,048
+/// anchors (the default), 48 with 8,192, 24 with 16,384, 10 with 32,768
+/// and 5 with 65,536; a board's core is several times slower, and cameras
+/// run at 15–25 fps. 8,192 anchors are also a state file of about 1.1 MB
+/// (~135 bytes each, under 200 at worst), far under
+/// [`state::MAX_STATE_BYTES`].
+pub const MAX_ANCHORS: usize = 8192;
+
 /// `[calibrate]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -162,6 +173,18 @@ impl CalibrateConfig {
             4..=256,
         )?;
         check_range("calibrate.tracks", self.tracks, 2..=1024)?;
+        let anchors = self.tracks * self.anchors_per_track;
+        if anchors > MAX_ANCHORS {
+            return Err(ConfigError::invalid(
+                "calibrate.tracks",
+                self.tracks,
+                format_args!(
+                    "calibrate.tracks × calibrate.anchors_per_track = {} × {} = {anchors} \
+                     anchors, more than the {MAX_ANCHORS} the calibration can refit at frame rate",
+                    self.tracks, self.anchors_per_track
+                ),
+            ));
+        }
         check_range("calibrate.refit_interval", self.refit_interval, 1..=100000)?;
         check_range("calibrate.min_tilt_deg", self.min_tilt_deg, 0.0..=45.0)?;
         check_range("calibrate.max_tilt_deg", self.max_tilt_deg, 45.0..=90.0)?;

@@ -32,8 +32,10 @@ use std::path::{Path, PathBuf};
 /// Format version written in the file.
 pub const STATE_VERSION: u32 = 1;
 
-/// The largest file read as a state file: about 110 bytes per anchor, so
-/// room for 150,000 anchors, far more than any configuration keeps.
+/// The largest file read as a state file. An anchor is about 135 bytes of
+/// JSON (under 200 with every number at full length), so the largest store
+/// a configuration may keep ([`super::MAX_ANCHORS`], 8,192 anchors) is
+/// under 1.7 MB: the cap leaves ample room and still refuses a video.
 pub const MAX_STATE_BYTES: u64 = 16 << 20;
 
 /// Why a process that does not hold the lock leaves the state alone.

@@ -332,6 +332,77 @@ fn only_the_first_to_open_a_state_file_writes_it() {
     assert!(!lock.exists());
 }
 
+/// `tracks × anchors_per_track` is bounded: each key in its range, the
+/// product could be 262,144 anchors, a state file over the 16 MiB read cap
+/// (the run's own state called corrupt at the next start) and a loop at a
+/// few frames per second.
+#[test]
+fn the_store_size_is_bounded_by_tracks_times_anchors_per_track() {
+    let cfg = |tracks, anchors_per_track| CalibrateConfig {
+        tracks,
+        anchors_per_track,
+        ..Default::default()
+    };
+    assert!(cfg(1024, 8).validate().is_ok());
+    assert!(cfg(32, 256).validate().is_ok());
+    assert_eq!(32 * 256, MAX_ANCHORS);
+    for (t, k) in [(1024, 256), (33, 256), (1024, 9)] {
+        let e = cfg(t, k).validate().unwrap_err().to_string();
+        assert!(
+            e.contains("calibrate.tracks")
+                && e.contains("calibrate.anchors_per_track")
+                && e.contains(&MAX_ANCHORS.to_string())
+                && e.contains(&(t * k).to_string()),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+    }
+    // Through the config file too.
+    let e =
+        crate::config::Config::from_toml("[calibrate]\ntracks = 1024\nanchors_per_track = 256\n")
+            .unwrap_err();
+    assert!(e.to_string().contains("262144"), "{e}");
+
+    // The largest store allowed, every number at its longest, writes a
+    // file well under the read cap.
+    let long = -1.234_567_890_123_456_7e-300;
+    let a = Anchor {
+        head: [long; 2],
+        foot: [long; 2],
+        motion: [long; 2],
+    };
+    let tracks = MAX_ANCHORS / 256;
+    let slots = vec![
+        Slot {
+            used: true,
+            len: 256,
+            ..Slot::default()
+        };
+        tracks
+    ];
+    let anchors = vec![a; MAX_ANCHORS];
+    let view = state::StateView {
+        width: 640,
+        height: 480,
+        tracks: &slots,
+        anchors: &anchors,
+        per_track: 256,
+    };
+    let bytes = serde_json::to_vec(&view).unwrap();
+    let saved = state::parse_state(&bytes).unwrap();
+    assert_eq!(
+        saved.tracks.iter().map(Vec::len).sum::<usize>(),
+        MAX_ANCHORS
+    );
+    let per_anchor = bytes.len() / MAX_ANCHORS;
+    assert!(per_anchor < 200, "{per_anchor} bytes per anchor");
+    assert!(
+        (bytes.len() as u64) < state::MAX_STATE_BYTES / 8,
+        "{} bytes",
+        bytes.len()
+    );
+}
+
 /// A file too large to be a state file is refused unread (a mistyped
 /// `--state` may name a video) and renamed aside, never over an existing
 /// name.
