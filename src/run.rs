@@ -546,7 +546,9 @@ pub struct LoopOptions<'a> {
 /// the snapshot's RGB frame when one is asked for; plus 8 MiB for the
 /// rest. Measured on x86_64 at the defaults (3 modes, no snapshot):
 /// 15.6 bytes per pixel over 320x240 .. 1920x1080 of peak RSS, against
-/// 16 here.
+/// 16 here. The snapshot measured 3.05 bytes per pixel at 3584x3584 and
+/// 3.3 at 1920x1080 (its PNG is written row by row; written whole it cost
+/// up to 9.5, see bench/RESULTS.md, "Peak RSS").
 pub fn memory_estimate(cfg: &Config, size: crate::frame::Size) -> u64 {
     let pixels = size.width as u64 * size.height as u64;
     let snapshot = if cfg.run.snapshot.is_empty() { 0 } else { 3 };
