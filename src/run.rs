@@ -186,11 +186,29 @@ impl Pipeline {
             // renamed aside with.
             let unusable = match file.load() {
                 Ok(Some(saved)) => match c.resume(&saved) {
-                    Ok(n) => {
+                    Ok(r) => {
                         log::info!(
-                            "calibration state {}: resumed {n} observations",
-                            cfg.run.state
+                            "calibration state {}: resumed {} observations",
+                            cfg.run.state,
+                            r.restored
                         );
+                        // Once per start, not per anchor: a damaged file
+                        // may hold thousands.
+                        if r.outside > 0 {
+                            log::warn!(
+                                "calibration state {}: dropped {} anchors outside the frame",
+                                cfg.run.state,
+                                r.outside
+                            );
+                        }
+                        if r.impossible > 0 {
+                            log::warn!(
+                                "calibration state {}: dropped {} impossible anchors \
+                                 (not finite, head not above foot, or motion over 1)",
+                                cfg.run.state,
+                                r.impossible
+                            );
+                        }
                         None
                     }
                     Err([sw, sh, w, h]) => Some((

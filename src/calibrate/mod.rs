@@ -232,6 +232,31 @@ pub enum ScaleMode {
     ReferencePerson(f64),
 }
 
+/// How far outside the frame a resumed anchor's head or foot may lie, as a
+/// fraction of the frame's width (horizontally) or height (vertically).
+/// A stored point is a mean of points of regions inside the frame, so it is
+/// inside too. A tenth is slack for sub-pixel estimates and for any later
+/// change to how points are placed, and still far from what an edited or
+/// damaged file holds (heads scaled by 1e300, a foot thousands of pixels
+/// off).
+pub const ANCHOR_FRAME_MARGIN: f64 = 0.1;
+
+/// The least head-to-foot extent of a resumed anchor, pixels: no region
+/// this short is classified as a person (`classify.min_height` is at least 8).
+pub const MIN_ANCHOR_EXTENT_PX: f64 = 1.0;
+
+/// What [`Calibrator::resume`] did with a state's anchors.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Resumed {
+    /// Anchors restored into the store.
+    pub restored: usize,
+    /// Anchors dropped for a point outside the frame.
+    pub outside: usize,
+    /// Anchors dropped as impossible otherwise (a non-finite value, a head
+    /// not above the foot, a motion longer than a unit vector).
+    pub impossible: usize,
+}
+
 /// The current calibration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
@@ -573,35 +598,58 @@ impl Calibrator {
     }
 
     /// Resumes from a loaded state (anchors of earlier runs). Returns the
-    /// number of anchors restored, or, when the state is for another frame
-    /// size, that size and this calibrator's (`[saved w, h, own w, h]`),
+    /// anchors restored and dropped, or, when the state is for another
+    /// frame size, that size and this calibrator's (`[saved w, h, own w, h]`),
     /// restoring nothing.
-    pub fn resume(&mut self, saved: &state::Saved) -> Result<usize, [u32; 4]> {
+    ///
+    /// Anchors no run can have stored are dropped, not resumed: a point
+    /// farther outside the frame than [`ANCHOR_FRAME_MARGIN`] of its size
+    /// (anchors are means of observations of regions inside the frame;
+    /// border-touching ones are rejected), a non-finite value, a head not
+    /// at least [`MIN_ANCHOR_EXTENT_PX`] above the foot, a motion longer
+    /// than a unit vector. Heads scaled by 1e300 once silenced the
+    /// calibration and were written back.
+    pub fn resume(&mut self, saved: &state::Saved) -> Result<Resumed, [u32; 4]> {
         let w = (self.norm.p[0] * 2.0 + 1.0).round() as u32;
         let h = (self.norm.p[1] * 2.0 + 1.0).round() as u32;
         if saved.width != w || saved.height != h {
             return Err([saved.width, saved.height, w, h]);
         }
-        let mut n = 0;
+        let (mx, my) = (
+            ANCHOR_FRAME_MARGIN * f64::from(w),
+            ANCHOR_FRAME_MARGIN * f64::from(h),
+        );
+        let in_frame = |p: [f64; 2]| {
+            (-mx..=f64::from(w) + mx).contains(&p[0]) && (-my..=f64::from(h) + my).contains(&p[1])
+        };
+        let mut r = Resumed::default();
         // Earlier runs' track ids could collide with this run's: give them
         // ids from the top of the range.
         for (i, t) in saved.tracks.iter().enumerate() {
             let id = u32::MAX - i as u32;
             for a in t {
-                let valid = a.head.iter().chain(a.foot.iter()).all(|x| x.is_finite());
-                if valid && a.head[1] < a.foot[1] {
+                let finite = a.head.iter().chain(&a.foot).chain(&a.motion);
+                if !finite.into_iter().all(|x| x.is_finite()) {
+                    r.impossible += 1;
+                } else if !in_frame(a.head) || !in_frame(a.foot) {
+                    r.outside += 1;
+                } else if a.foot[1] - a.head[1] < MIN_ANCHOR_EXTENT_PX
+                    || a.motion[0] * a.motion[0] + a.motion[1] * a.motion[1] > 1.0 + 1e-9
+                {
+                    r.impossible += 1;
+                } else {
                     // Saved anchors were smoothed and thinned when first
                     // stored: they go straight into the store.
                     let slot = self.slot_of(0, id);
                     self.add_anchor(0, slot, *a);
-                    n += 1;
+                    r.restored += 1;
                 }
             }
         }
         self.new_anchors = 0;
         self.refit();
         self.emitted = None;
-        Ok(n)
+        Ok(r)
     }
 
     /// The full refit (bounded work: every stored anchor a few dozen times).

@@ -213,7 +213,7 @@ fn state_file_round_trip_and_corrupt_file() {
     assert!(!path.with_extension("json.stature-tmp").exists());
     let saved = state::StateFile::new(&path, 0).load().unwrap().unwrap();
     let mut d = Calibrator::new(&cfg, 640, 480);
-    let n = d.resume(&saved).unwrap();
+    let n = d.resume(&saved).unwrap().restored;
     assert_eq!(n, c.anchor_count());
     // Every saved anchor is restored as it was (not re-smoothed as if it
     // were a new frame's observation).
@@ -305,7 +305,10 @@ fn only_the_first_to_open_a_state_file_writes_it() {
     std::fs::remove_file(&tmp).unwrap();
     // It resumes from the state...
     let mut second = Calibrator::new(&cfg, 640, 480);
-    let n = second.resume(&file.load().unwrap().unwrap()).unwrap();
+    let n = second
+        .resume(&file.load().unwrap().unwrap())
+        .unwrap()
+        .restored;
     assert_eq!(n, first.anchor_count());
     // ...but its writes leave the file as the first wrote it.
     second.state = Some(file);
@@ -401,6 +404,99 @@ fn the_store_size_is_bounded_by_tracks_times_anchors_per_track() {
         "{} bytes",
         bytes.len()
     );
+}
+
+/// A state whose anchors no run can have stored (an edited or damaged
+/// file): they are dropped and counted, the rest resumed. Before, heads
+/// scaled by 1e300 (finite) were resumed, silenced the calibration and
+/// were written back.
+#[test]
+fn impossible_anchors_in_a_state_are_dropped_and_counted() {
+    let mut rng = Rng::new(2);
+    let cam = random_camera(&mut rng, 640, 480);
+    let cfg = CalibrateConfig {
+        camera_height_m: cam.height,
+        ..Default::default()
+    };
+    let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 8);
+    let good: Vec<Vec<Anchor>> = c
+        .slots
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.used && s.len > 0)
+        .map(|(i, s)| c.anchors[i * cfg.anchors_per_track..][..s.len].to_vec())
+        .collect();
+    let n_good: usize = good.iter().map(Vec::len).sum();
+    let clean = state::Saved {
+        version: state::STATE_VERSION,
+        width: 640,
+        height: 480,
+        tracks: good.clone(),
+    };
+    let mut reference = Calibrator::new(&cfg, 640, 480);
+    let r = reference.resume(&clean).unwrap();
+    assert_eq!(r.restored, n_good);
+    assert_eq!((r.outside, r.impossible), (0, 0));
+    let want = reference.estimate().unwrap().geom.focal();
+
+    let a = good[0][0];
+    let with = |f: &dyn Fn(&mut Anchor)| {
+        let mut b = a;
+        f(&mut b);
+        b
+    };
+    // Within a tenth of the frame beyond its edges: kept (slack).
+    let near = [
+        with(&|b| b.foot[0] = -60.0),
+        with(&|b| b.head[1] = -40.0),
+        with(&|b| b.foot[1] = 520.0),
+    ];
+    let outside = [
+        with(&|b| b.head = [b.head[0] * 1e300, b.head[1] * 1e300]),
+        with(&|b| b.head[1] = -1e300),
+        with(&|b| b.foot[0] = -70.0),
+        with(&|b| b.foot[0] = 710.0),
+        with(&|b| b.foot[1] = 1e6),
+    ];
+    let impossible = [
+        with(&|b| b.motion = [f64::NAN, 0.0]),
+        with(&|b| b.foot[0] = f64::INFINITY),
+        with(&|b| b.head[1] = b.foot[1] + 10.0),
+        with(&|b| b.head[1] = b.foot[1] - 0.5),
+        with(&|b| b.motion = [5.0, 0.0]),
+    ];
+    let mut tracks = good.clone();
+    // A whole track of heads scaled by 1e300, as in the review.
+    tracks.push(
+        good[1]
+            .iter()
+            .map(|b| Anchor {
+                head: [b.head[0] * 1e300, b.head[1] * 1e300],
+                ..*b
+            })
+            .collect(),
+    );
+    tracks.push(outside.to_vec());
+    tracks.push(impossible.to_vec());
+    tracks.push(near.to_vec());
+    let damaged = state::Saved { tracks, ..clean };
+    let mut d = Calibrator::new(&cfg, 640, 480);
+    let r = d.resume(&damaged).unwrap();
+    assert_eq!(r.outside, good[1].len() + outside.len(), "{r:?}");
+    assert_eq!(r.impossible, impossible.len(), "{r:?}");
+    assert_eq!(r.restored, n_good + near.len(), "{r:?}");
+    // The calibration is the clean state's (three near anchors aside).
+    let f = d.estimate().expect("still calibrated").geom.focal();
+    assert!((f / want - 1.0).abs() < 0.02, "{f} vs {want}");
+    // Nothing dropped is written back.
+    let dir = crate::scratch::fresh_dir("state-impossible");
+    let path = dir.join("s.json");
+    d.state = Some(state::StateFile::new(&path, 1 << 20));
+    d.finish(1);
+    let saved = state::StateFile::new(&path, 0).load().unwrap().unwrap();
+    let mut again = Calibrator::new(&cfg, 640, 480);
+    let r = again.resume(&saved).unwrap();
+    assert_eq!((r.outside, r.impossible), (0, 0), "{r:?}");
 }
 
 /// A file too large to be a state file is refused unread (a mistyped
