@@ -1433,6 +1433,71 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0);
 }
 
+/// An MQTT `ca=` path naming a FIFO is refused at start-up, by `run` and
+/// by `config --check` alike. Before, both blocked in open(2) waiting for
+/// a writer, and only kill -9 ended them.
+#[test]
+fn an_mqtt_ca_fifo_is_refused_by_run_and_config_check() {
+    let dir = common::fresh_dir("cli-an_mqtt_ca_fifo_is_refused");
+    let fifo = dir.join("ca.fifo");
+    rustix::fs::mknodat(
+        rustix::fs::CWD,
+        &fifo,
+        rustix::fs::FileType::Fifo,
+        rustix::fs::Mode::from_raw_mode(0o600),
+        0,
+    )
+    .unwrap();
+    let sink = format!("mqtt:127.0.0.1:1?tls=true&ca={}", fifo.display());
+    let cfg = dir.join("c.toml");
+    std::fs::write(&cfg, format!("[report]\nsinks = [\"{sink}\"]\n")).unwrap();
+    let cfg = cfg.display().to_string();
+    let runs: [&[&str]; 2] = [
+        &["config", "--check", &cfg],
+        &[
+            "run",
+            "--source",
+            "sim:plaza?seed=1&frames=5",
+            "--report",
+            &sink,
+        ],
+    ];
+    for args in runs {
+        // A writer stands by so that the test fails instead of hanging
+        // if the open blocks again: a non-blocking open for writing
+        // succeeds (and ends the reader's wait) only once a reader waits.
+        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let writer = std::thread::spawn({
+            let (fifo, done) = (fifo.clone(), done.clone());
+            move || {
+                use std::os::unix::fs::OpenOptionsExt;
+                while !done.load(std::sync::atomic::Ordering::SeqCst) {
+                    let w = std::fs::OpenOptions::new()
+                        .write(true)
+                        .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+                        .open(&fifo);
+                    if w.is_ok() {
+                        return;
+                    }
+                    std::thread::sleep(std::time::Duration::from_millis(5));
+                }
+            }
+        });
+        let o = run(args);
+        done.store(true, std::sync::atomic::Ordering::SeqCst);
+        writer.join().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(3), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!(
+                "MQTT CA file `{}`: not a regular file (a FIFO)",
+                fifo.display()
+            )),
+            "{args:?}: {err}"
+        );
+    }
+}
+
 /// Before: a blank PNG and exit 0 for a stream that had no frame.
 #[test]
 fn a_snapshot_of_a_stream_without_frames_is_an_error() {
