@@ -153,12 +153,14 @@ const LOCK_RETRY: std::time::Duration = std::time::Duration::from_millis(20);
 /// exclusive lock, without waiting more than [`LOCK_TRIES`] attempts.
 /// Opened read-only: `flock` needs no write access, and a lock file an
 /// installer created as root must still be usable by the service's user.
+/// Non-blocking: a FIFO put at the path would otherwise block the open
+/// until a writer came (on a regular file the flag changes nothing).
 fn take_lock(path: &Path) -> std::io::Result<Lock> {
     use rustix::fs::{flock, fstat, open, stat, FlockOperation, Mode, OFlags};
     for _ in 0..LOCK_TRIES {
         let fd = open(
             path,
-            OFlags::RDONLY | OFlags::CREATE | OFlags::CLOEXEC,
+            OFlags::RDONLY | OFlags::CREATE | OFlags::CLOEXEC | OFlags::NONBLOCK,
             Mode::from_raw_mode(0o644),
         )
         .map_err(|e| {

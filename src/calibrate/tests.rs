@@ -333,6 +333,16 @@ fn only_the_first_to_open_a_state_file_writes_it() {
     drop(third);
     drop(second);
     assert!(!lock.exists());
+    // A FIFO at the lock's path does not block the open.
+    rustix::fs::mknodat(
+        rustix::fs::CWD,
+        &lock,
+        rustix::fs::FileType::Fifo,
+        rustix::fs::Mode::from_raw_mode(0o600),
+        0,
+    )
+    .unwrap();
+    let _ = state::StateFile::open(&path, 0);
 }
 
 /// `tracks × anchors_per_track` is bounded: each key in its range, the
