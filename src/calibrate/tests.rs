@@ -334,14 +334,7 @@ fn only_the_first_to_open_a_state_file_writes_it() {
     drop(second);
     assert!(!lock.exists());
     // A FIFO at the lock's path does not block the open.
-    rustix::fs::mknodat(
-        rustix::fs::CWD,
-        &lock,
-        rustix::fs::FileType::Fifo,
-        rustix::fs::Mode::from_raw_mode(0o600),
-        0,
-    )
-    .unwrap();
+    crate::scratch::mkfifo(&lock);
     let _ = state::StateFile::open(&path, 0);
 }
 

@@ -736,14 +736,7 @@ mod tests {
     fn a_fifo_nothing_reads_is_refused_at_open_and_one_that_is_read_works() {
         let dir = crate::scratch::fresh_dir("sink-fifo");
         let fifo = dir.join("records");
-        rustix::fs::mknodat(
-            rustix::fs::CWD,
-            &fifo,
-            rustix::fs::FileType::Fifo,
-            rustix::fs::Mode::from_raw_mode(0o600),
-            0,
-        )
-        .unwrap();
+        crate::scratch::mkfifo(&fifo);
         let path = fifo.to_str().unwrap().to_string();
         // Before: the open waited for a reader, and no signal ended it.
         let e = Sink::open(&SinkSpec::File(path.clone())).err().unwrap();

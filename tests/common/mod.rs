@@ -39,6 +39,15 @@ pub fn synthetic_y4m(size: Size, frames: usize) -> Vec<u8> {
     out
 }
 
+/// `stature ARGS` to its end, stdin empty, stdout and stderr captured.
+pub fn run_stature(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(stature_bin())
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap()
+}
+
 /// Path of the built `stature` binary (integration tests only).
 pub fn stature_bin() -> &'static str {
     env!("CARGO_BIN_EXE_stature")
@@ -47,4 +56,4 @@ pub fn stature_bin() -> &'static str {
 mod scratch;
 // Not every test crate that includes `common` makes scratch directories.
 #[allow(unused_imports)]
-pub use scratch::{fresh_dir, ScratchDir};
+pub use scratch::{fresh_dir, mkfifo, ScratchDir};

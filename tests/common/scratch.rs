@@ -1,5 +1,6 @@
-//! Scratch directories for tests, shared by the integration tests
-//! (`tests/common`) and the library's unit tests (`#[path]` in `lib.rs`).
+//! Scratch directories and file-system fixtures for tests, shared by the
+//! integration tests (`tests/common`) and the library's unit tests
+//! (`#[path]` in `lib.rs`).
 
 /// An empty scratch directory `stature-<name>-<pid>` under the system temp
 /// dir (emptied first if an earlier run left it), removed when dropped —
@@ -36,4 +37,18 @@ impl Drop for ScratchDir {
             let _ = std::fs::remove_dir_all(&self.0);
         }
     }
+}
+
+/// Makes a FIFO at `path` (mode 0600): the file type that blocks an
+/// `open(2)` until the other end opens, which every path the product opens
+/// must survive.
+pub fn mkfifo(path: &std::path::Path) {
+    rustix::fs::mknodat(
+        rustix::fs::CWD,
+        path,
+        rustix::fs::FileType::Fifo,
+        rustix::fs::Mode::from_raw_mode(0o600),
+        0,
+    )
+    .unwrap();
 }

@@ -33,13 +33,7 @@ fn records(stdout: &[u8]) -> Vec<serde_json::Value> {
         .collect()
 }
 
-fn run(args: &[&str]) -> std::process::Output {
-    Command::new(stature_bin())
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap()
-}
+use crate::common::run_stature as run;
 
 #[test]
 fn y4m_file_streams_hello_status_bye_to_stdout_and_udp() {
@@ -1440,14 +1434,7 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
 fn an_mqtt_ca_fifo_is_refused_by_run_and_config_check() {
     let dir = common::fresh_dir("cli-an_mqtt_ca_fifo_is_refused");
     let fifo = dir.join("ca.fifo");
-    rustix::fs::mknodat(
-        rustix::fs::CWD,
-        &fifo,
-        rustix::fs::FileType::Fifo,
-        rustix::fs::Mode::from_raw_mode(0o600),
-        0,
-    )
-    .unwrap();
+    common::mkfifo(&fifo);
     let sink = format!("mqtt:127.0.0.1:1?tls=true&ca={}", fifo.display());
     let cfg = dir.join("c.toml");
     std::fs::write(&cfg, format!("[report]\nsinks = [\"{sink}\"]\n")).unwrap();

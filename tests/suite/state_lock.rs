@@ -5,18 +5,10 @@
 //! wrote through one temporary file and readers saw torn state files.
 
 use stature::calibrate::state::{StateFile, IN_USE};
-use std::process::{Command, Stdio};
 
 use crate::common;
-use crate::common::stature_bin;
 
-fn run(args: &[&str]) -> std::process::Output {
-    Command::new(stature_bin())
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap()
-}
+use crate::common::run_stature as run;
 
 #[test]
 fn a_second_process_resumes_from_the_state_but_never_writes_it() {

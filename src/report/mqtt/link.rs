@@ -612,17 +612,6 @@ mod tests {
         }
     }
 
-    fn fifo(path: &std::path::Path) {
-        rustix::fs::mknodat(
-            rustix::fs::CWD,
-            path,
-            rustix::fs::FileType::Fifo,
-            rustix::fs::Mode::from_raw_mode(0o600),
-            0,
-        )
-        .unwrap();
-    }
-
     /// Runs `check` while a thread stands by to open `fifo` for writing
     /// and close it again, which ends an open(2) that waits for a writer
     /// (before the fix the check blocked there, and the test would hang
@@ -657,7 +646,7 @@ mod tests {
     fn a_ca_fifo_is_refused_without_opening_it() {
         let dir = crate::scratch::fresh_dir("mqtt-ca-fifo");
         let ca = dir.join("ca.fifo");
-        fifo(&ca);
+        crate::scratch::mkfifo(&ca);
         // Before: open(2) waited for a writer, and no signal ended it.
         let e = with_fifo_writer(&ca, || refusal(&ca));
         assert!(
