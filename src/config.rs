@@ -32,9 +32,16 @@ impl ConfigError {
     }
     /// Builds an error for `key` = `value` with a complete reason.
     pub fn invalid(key: &str, value: impl fmt::Display, reason: impl fmt::Display) -> Self {
+        let mut value = value.to_string();
+        // A huge number as `1e308`, not as the 309 digits `Display` gives it.
+        if value.len() > 24 {
+            if let Ok(v) = value.parse::<f64>() {
+                value = format!("{v:e}");
+            }
+        }
         ConfigError {
             key: key.into(),
-            value: value.to_string(),
+            value,
             reason: reason.to_string(),
             option_reason: None,
         }
@@ -620,5 +627,7 @@ mod tests {
         let e = Config::from_toml("[report]\nqueue = 1\n").unwrap_err();
         assert_eq!(e.key, "report.queue");
         assert!(e.to_string().contains("4..=65536"), "{e}");
+        let e = Config::from_toml("[calibrate]\ncamera_height_m = 1e308\n").unwrap_err();
+        assert!(e.to_string().contains("= 1e308: expected"), "{e}");
     }
 }

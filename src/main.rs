@@ -120,7 +120,7 @@ struct RunArgs {
     #[arg(long)]
     state: Option<PathBuf>,
     /// Stop after N frames.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     frames: Option<u64>,
     /// Classifier weight blob (default: the built-in weights).
     #[arg(long)]
@@ -190,7 +190,7 @@ struct TrainArgs {
     #[arg(long)]
     report: Option<PathBuf>,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     seed: u64,
     /// Window size WxH in pixels (default 32x64).
     #[arg(long)]
@@ -199,13 +199,13 @@ struct TrainArgs {
     #[arg(long)]
     margin: Option<u16>,
     /// HOG cell side, pixels, 2..=32 dividing the window (default 4).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     hog_cell: Option<u8>,
     /// LBP cell side, pixels, 2..=32 dividing the window (default 8).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     lbp_cell: Option<u8>,
     /// LBP comparison offset, grey levels (default 2).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     lbp_threshold: Option<u8>,
     /// How the box maps to the window: height (crop a wide box's sides; default) or contain (shrink it whole).
     #[arg(long)]
@@ -223,13 +223,13 @@ struct TrainArgs {
     #[arg(long, default_value = "hog+lbp")]
     features: String,
     /// SVM C, 0.0001..=1000 (default: chosen by cross-validation).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     c: Option<f64>,
     /// Share of HOG blocks / LBP cells kept by weight magnitude, 0.01..=1 (Park et al.; default 0.5).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     select: Option<f64>,
     /// Use every n-th PETS training frame for the base set, 1..=600 (default 1).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pets_stride: Option<u32>,
     /// Also evaluate on the held-out PETS frames (600-794) and sim seeds.
     #[arg(long)]
@@ -250,13 +250,13 @@ struct TrainArgs {
     #[arg(long)]
     mirror: Option<bool>,
     /// Jittered boxes of each clean person per training frame, 1..=8 (default 1).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     persons: Option<usize>,
     /// Rounds of hard-negative mining, 0..=10 (default 1).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     mining_rounds: Option<usize>,
     /// Search every n-th simulated training frame for hard negatives, 0..=1000 (0: PETS only; default 0).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     mine_sim_stride: Option<u64>,
     /// Cost multiplier of a kind, KIND=X (person, background, group, fragment, car, dog); repeatable.
     #[arg(long = "weight")]
@@ -269,7 +269,7 @@ struct TrainArgs {
 #[derive(Args)]
 struct DemoArgs {
     /// Frames to run (default: the whole scene).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     frames: Option<u64>,
     #[command(flatten)]
     verbosity: Verbosity,
@@ -284,10 +284,10 @@ struct SimArgs {
     #[arg(long, default_value = "plaza")]
     scene: String,
     /// Seed of everything random in the scene.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     seed: u64,
     /// Clip length in frames (default: the scene's).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     frames: Option<u64>,
     /// Write the clip as Y4M to this file (`-` for stdout).
     #[arg(long)]
@@ -299,7 +299,7 @@ struct SimArgs {
     #[arg(long)]
     png: Option<PathBuf>,
     /// Frame written by --png.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
     png_frame: u64,
     /// Draw the truth (boxes, head and foot points, horizon) on the PNG.
     #[arg(long, requires = "png")]

@@ -338,6 +338,12 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             2,
             "= mqtt:127.0.0.1:2: same MQTT client id `stature-",
         ),
+        // A huge length is shown as written (before: 309 digits).
+        (
+            vec!["--camera-height".into(), "1e308".into()],
+            2,
+            "option `--camera-height` = 1e308: expected a value in 0.5..=100",
+        ),
         // The same sink twice sent every record twice.
         (
             vec![
@@ -447,6 +453,12 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
             "{args:?}: one error line expected: {err}"
         );
     }
+    // A negative count is a bad value, not an unknown flag (before:
+    // "unexpected argument '-1' found").
+    let out = run(&["run", "--frames", "-1"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("invalid value '-1' for '--frames"), "{err}");
 }
 
 #[test]
