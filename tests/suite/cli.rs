@@ -72,8 +72,13 @@ fn y4m_file_streams_hello_status_bye_to_stdout_and_udp() {
 }
 
 /// `stature run --source y4m:- -q` with every standard stream piped.
+/// `stature run` reading a pipe, with SIGHUP at its default disposition:
+/// a test harness started under `nohup` (or a supervisor that ignores
+/// hangups) passes the ignored SIGHUP on, and stature rightly keeps a
+/// hangup ignored that its parent ignored (`sighup_ignored_by_the_parent_stays_ignored`).
 fn run_from_stdin() -> std::process::Child {
-    Command::new(stature_bin())
+    Command::new("env")
+        .args(["--default-signal=HUP", stature_bin()])
         .args(["run", "--source", "y4m:-", "-q"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
