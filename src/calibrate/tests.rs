@@ -191,16 +191,22 @@ fn near_vertical_view_is_flagged() {
     }
 }
 
-#[test]
-fn state_file_round_trip_and_corrupt_file() {
-    let dir = crate::scratch::fresh_dir("state");
-    let path = dir.join("cal.json");
-    let mut rng = Rng::new(2);
-    let cam = random_camera(&mut rng, 640, 480);
+/// The camera the state-file tests walk people past (640x480), and a
+/// configuration that knows its height.
+fn state_test_camera() -> (Camera, CalibrateConfig) {
+    let cam = random_camera(&mut Rng::new(2), 640, 480);
     let cfg = CalibrateConfig {
         camera_height_m: cam.height,
         ..Default::default()
     };
+    (cam, cfg)
+}
+
+#[test]
+fn state_file_round_trip_and_corrupt_file() {
+    let dir = crate::scratch::fresh_dir("state");
+    let path = dir.join("cal.json");
+    let (cam, cfg) = state_test_camera();
     let obs = walk(&cam, &SynthScene::default(), &mut Rng::new(8));
     let mut c = Calibrator::new(&cfg, 640, 480);
     c.state = Some(state::StateFile::new(&path, 1 << 20));
@@ -275,12 +281,7 @@ fn only_the_first_to_open_a_state_file_writes_it() {
     let path = dir.join("shared.json");
     let lock = dir.join("shared.json.stature-lock");
     let tmp = dir.join("shared.json.stature-tmp");
-    let mut rng = Rng::new(2);
-    let cam = random_camera(&mut rng, 640, 480);
-    let cfg = CalibrateConfig {
-        camera_height_m: cam.height,
-        ..Default::default()
-    };
+    let (cam, cfg) = state_test_camera();
     let obs = walk(&cam, &SynthScene::default(), &mut Rng::new(8));
     let (early, late) = obs.split_at(obs.len() / 2);
     let feed = |c: &mut Calibrator, obs: &[synth::SynthObs]| {
@@ -415,12 +416,7 @@ fn the_store_size_is_bounded_by_tracks_times_anchors_per_track() {
 /// were written back.
 #[test]
 fn impossible_anchors_in_a_state_are_dropped_and_counted() {
-    let mut rng = Rng::new(2);
-    let cam = random_camera(&mut rng, 640, 480);
-    let cfg = CalibrateConfig {
-        camera_height_m: cam.height,
-        ..Default::default()
-    };
+    let (cam, cfg) = state_test_camera();
     let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 8);
     let good: Vec<Vec<Anchor>> = c
         .slots

@@ -52,3 +52,34 @@ pub fn mkfifo(path: &std::path::Path) {
     )
     .unwrap();
 }
+
+/// Runs `check` while a thread stands by to open the FIFO `fifo` for
+/// writing and close it again, which ends an open(2) that waits for a
+/// writer: a test of "a FIFO is refused without opening it" then fails
+/// on its message instead of hanging when the open blocks again.
+pub fn with_fifo_writer<T>(fifo: &std::path::Path, check: impl FnOnce() -> T) -> T {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let done = std::sync::Arc::new(AtomicBool::new(false));
+    let writer = std::thread::spawn({
+        let (fifo, done) = (fifo.to_path_buf(), done.clone());
+        move || {
+            use std::os::unix::fs::OpenOptionsExt;
+            // A non-blocking open for writing fails (ENXIO) until a
+            // reader waits in its open.
+            while !done.load(Ordering::SeqCst) {
+                let w = std::fs::OpenOptions::new()
+                    .write(true)
+                    .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+                    .open(&fifo);
+                if w.is_ok() {
+                    return;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+        }
+    });
+    let out = check();
+    done.store(true, Ordering::SeqCst);
+    writer.join().unwrap();
+    out
+}

@@ -1467,29 +1467,8 @@ fn an_mqtt_ca_fifo_is_refused_by_run_and_config_check() {
         ],
     ];
     for args in runs {
-        // A writer stands by so that the test fails instead of hanging
-        // if the open blocks again: a non-blocking open for writing
-        // succeeds (and ends the reader's wait) only once a reader waits.
-        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let writer = std::thread::spawn({
-            let (fifo, done) = (fifo.clone(), done.clone());
-            move || {
-                use std::os::unix::fs::OpenOptionsExt;
-                while !done.load(std::sync::atomic::Ordering::SeqCst) {
-                    let w = std::fs::OpenOptions::new()
-                        .write(true)
-                        .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
-                        .open(&fifo);
-                    if w.is_ok() {
-                        return;
-                    }
-                    std::thread::sleep(std::time::Duration::from_millis(5));
-                }
-            }
-        });
-        let o = run(args);
-        done.store(true, std::sync::atomic::Ordering::SeqCst);
-        writer.join().unwrap();
+        // Fails instead of hanging if the open blocks again.
+        let o = common::with_fifo_writer(&fifo, || run(args));
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(3), "{args:?}: {err}");
         assert!(

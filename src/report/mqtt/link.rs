@@ -603,7 +603,6 @@ fn tls_config(ca: &str) -> io::Result<rustls::ClientConfig> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::AtomicBool;
 
     fn refusal(ca: &std::path::Path) -> String {
         match tls_config(ca.to_str().unwrap()) {
@@ -612,43 +611,13 @@ mod tests {
         }
     }
 
-    /// Runs `check` while a thread stands by to open `fifo` for writing
-    /// and close it again, which ends an open(2) that waits for a writer
-    /// (before the fix the check blocked there, and the test would hang
-    /// instead of failing).
-    fn with_fifo_writer<T>(fifo: &std::path::Path, check: impl FnOnce() -> T) -> T {
-        let done = Arc::new(AtomicBool::new(false));
-        let writer = std::thread::spawn({
-            let (fifo, done) = (fifo.to_path_buf(), done.clone());
-            move || {
-                use std::os::unix::fs::OpenOptionsExt;
-                // A non-blocking open for writing fails (ENXIO) until a
-                // reader waits in its open.
-                while !done.load(Ordering::SeqCst) {
-                    let w = std::fs::OpenOptions::new()
-                        .write(true)
-                        .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
-                        .open(&fifo);
-                    if w.is_ok() {
-                        return;
-                    }
-                    std::thread::sleep(Duration::from_millis(5));
-                }
-            }
-        });
-        let out = check();
-        done.store(true, Ordering::SeqCst);
-        writer.join().unwrap();
-        out
-    }
-
     #[test]
     fn a_ca_fifo_is_refused_without_opening_it() {
         let dir = crate::scratch::fresh_dir("mqtt-ca-fifo");
         let ca = dir.join("ca.fifo");
         crate::scratch::mkfifo(&ca);
         // Before: open(2) waited for a writer, and no signal ended it.
-        let e = with_fifo_writer(&ca, || refusal(&ca));
+        let e = crate::scratch::with_fifo_writer(&ca, || refusal(&ca));
         assert!(
             e.contains(&format!("MQTT CA file `{}`", ca.display())),
             "{e}"
@@ -657,7 +626,7 @@ mod tests {
         // The same through a symbolic link: it is followed.
         let link = dir.join("ca.pem");
         std::os::unix::fs::symlink(&ca, &link).unwrap();
-        let e = with_fifo_writer(&ca, || refusal(&link));
+        let e = crate::scratch::with_fifo_writer(&ca, || refusal(&link));
         assert!(e.contains("not a regular file (a FIFO)"), "{e}");
     }
 
