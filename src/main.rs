@@ -1321,19 +1321,17 @@ fn check_data_dir(dir: &std::path::Path) -> Result<(), String> {
 }
 
 /// Refuses a numeric option outside `range` (also NaN), naming the option,
-/// the value and the range.
-fn in_range<T: PartialOrd + std::fmt::Display>(
+/// the value and the range: the config's range check, worded for a
+/// command-line option.
+fn in_range<T: PartialOrd + std::fmt::Display + Copy>(
     option: &str,
     value: Option<T>,
     range: std::ops::RangeInclusive<T>,
 ) -> Result<(), String> {
     match value {
-        Some(v) if !range.contains(&v) => Err(format!(
-            "{option} {v}: expected a value in {}..={}",
-            range.start(),
-            range.end()
-        )),
-        _ => Ok(()),
+        Some(v) => stature::config::check_range(option, v, range)
+            .map_err(|e| format!("{option} {}: {}", e.value, e.reason)),
+        None => Ok(()),
     }
 }
 
