@@ -74,6 +74,14 @@ export SOAK_FRAMES=${SOAK_FRAMES:-2000}
 # ...and its RSS is qemu's, translated-code cache included (tests/soak.rs):
 # allocations stay at exactly 0, the RSS bound is looser than the host's 512 KiB.
 export SOAK_RSS_SLACK_KIB=${SOAK_RSS_SLACK_KIB:-8192}
+# The two longest sweeps, shortened the same way (about 30x their native
+# time here; what a target could change shows on the first runs as well):
+# the calibration's random cameras (f64 and libm: 4 of the host's 12, the
+# same 4) and the SIGKILL-during-state-writes runs (each waits for its
+# emulated start-up and first state write; the rename is the host
+# kernel's under qemu-user: 6 of 20).
+export CALIBRATE_TEST_CAMERAS=${CALIBRATE_TEST_CAMERAS:-4}
+export FAULT_KILL_RUNS=${FAULT_KILL_RUNS:-6}
 jobs_max=${CROSS_TEST_JOBS:-$(($(nproc) + 1))}
 threads=${CROSS_TEST_THREADS:-2}
 

@@ -42,7 +42,7 @@ fn errors(e: &Estimate, cam: &Camera) -> Errors {
 fn random_cameras_are_recovered_with_known_camera_height() {
     let mut rng = Rng::new(11);
     let mut worst = [0.0f64; 3];
-    for k in 0..12 {
+    for k in 0..crate::scratch::runs_from_env("CALIBRATE_TEST_CAMERAS", 12) as u64 {
         let cam = random_camera(&mut rng, 640, 480);
         let cfg = CalibrateConfig {
             camera_height_m: cam.height,
@@ -104,7 +104,7 @@ fn random_cameras_are_recovered_with_known_camera_height() {
 #[test]
 fn matched_population_prior_gives_camera_height() {
     let mut rng = Rng::new(21);
-    for k in 0..6 {
+    for k in 0..crate::scratch::runs_from_env("CALIBRATE_TEST_CAMERAS", 12).div_ceil(2) as u64 {
         let cam = random_camera(&mut rng, 640, 480);
         let scene = SynthScene::default();
         let obs = walk(&cam, &scene, &mut Rng::new(200 + k));

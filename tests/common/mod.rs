@@ -56,4 +56,4 @@ pub fn stature_bin() -> &'static str {
 mod scratch;
 // Not every test crate that includes `common` makes scratch directories.
 #[allow(unused_imports)]
-pub use scratch::{fresh_dir, mkfifo, with_fifo_writer, ScratchDir};
+pub use scratch::{fresh_dir, mkfifo, runs_from_env, with_fifo_writer, ScratchDir};

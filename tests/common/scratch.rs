@@ -83,3 +83,18 @@ pub fn with_fifo_writer<T>(fifo: &std::path::Path, check: impl FnOnce() -> T) ->
     writer.join().unwrap();
     out
 }
+
+/// A test's run count from the environment variable `var` (a positive
+/// integer), else `default`. The emulated ARM runs (`cross/test.sh`) turn
+/// the longest sweeps down with these: there each run costs about 30 times
+/// its native time, and what the target could change (its libm, its
+/// 32-bit sizes) shows on the first few runs as on the last.
+pub fn runs_from_env(var: &str, default: usize) -> usize {
+    match std::env::var(var) {
+        Err(_) => default,
+        Ok(v) => match v.parse() {
+            Ok(n) if n > 0 => n,
+            _ => panic!("{var}={v:?}: a positive integer, please"),
+        },
+    }
+}

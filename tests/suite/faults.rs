@@ -112,7 +112,9 @@ fn sigkill_during_state_writes_leaves_a_complete_state_file() {
     .unwrap();
     let mut versions = std::collections::HashSet::new();
     let mut resumed = 0;
-    let runs = 20;
+    // Each run waits for its first state write (seconds under emulation).
+    let runs = crate::common::runs_from_env("FAULT_KILL_RUNS", 20);
+    assert!(runs >= 2, "FAULT_KILL_RUNS: a later run must resume");
     for (i, delay) in delays(runs).enumerate() {
         let before = std::fs::read(&state).ok();
         let mut child = Command::new(stature_bin())
