@@ -361,7 +361,7 @@ fn config_cmd(a: ConfigArgs) -> i32 {
     let checked = if a.keys_only {
         Ok(())
     } else {
-        check_run_paths(&cfg).and_then(|_snapshot| check_sinks(&cfg))
+        check_run_paths(&cfg).and_then(|_files| check_sinks(&cfg))
     };
     if let Err(r) = checked {
         say!("error: {}: {}", path.display(), r.message);
@@ -391,29 +391,44 @@ struct Refused {
     code: i32,
 }
 
+/// The files a run writes, opened and checked before it reads a frame.
+struct RunFiles {
+    /// The state file, its lock taken (or found held by another process),
+    /// for the run to keep: handed to the loop, not opened again, so that
+    /// the lock is held from the check to the run's end.
+    state: Option<stature::calibrate::state::StateFile>,
+    /// The snapshot's temporary file, for the run to write.
+    snapshot: Option<stature::snapshot::SnapshotFile>,
+}
+
 /// The paths a run writes, checked before it reads a frame (by `run` and
-/// by `config --check`): the state file (a temporary file is created and
-/// removed beside it) and the snapshot, whose temporary file is created
-/// now and returned for the run to write.
-fn check_run_paths(cfg: &Config) -> Result<Option<stature::snapshot::SnapshotFile>, Refused> {
+/// by `config --check`, which drops what it opened): the state file (its
+/// lock is taken and a temporary file is created and removed beside it)
+/// and the snapshot, whose temporary file is created now.
+fn check_run_paths(cfg: &Config) -> Result<RunFiles, Refused> {
+    let mut files = RunFiles {
+        state: None,
+        snapshot: None,
+    };
     if !cfg.run.state.is_empty() {
         let path = std::path::Path::new(&cfg.run.state);
-        if let Err(e) = stature::calibrate::state::StateFile::open(path, 0) {
-            return Err(Refused {
+        let state = stature::calibrate::state::StateFile::open(path, run::state_capacity(cfg))
+            .map_err(|e| Refused {
                 message: format!("calibration state {}: {e}", path.display()),
                 code: exit::UNAVAILABLE,
-            });
-        }
+            })?;
+        files.state = Some(state);
     }
-    if cfg.run.snapshot.is_empty() {
-        return Ok(None);
+    if !cfg.run.snapshot.is_empty() {
+        let snapshot =
+            stature::snapshot::SnapshotFile::create(std::path::Path::new(&cfg.run.snapshot))
+                .map_err(|e| Refused {
+                    message: e.to_string(),
+                    code: exit::UNAVAILABLE,
+                })?;
+        files.snapshot = Some(snapshot);
     }
-    stature::snapshot::SnapshotFile::create(std::path::Path::new(&cfg.run.snapshot))
-        .map(Some)
-        .map_err(|e| Refused {
-            message: e.to_string(),
-            code: exit::UNAVAILABLE,
-        })
+    Ok(files)
 }
 
 /// What `config --check` can know of the sinks without sending anything,
@@ -637,10 +652,13 @@ fn run_source(
         }
     }
     // The state and snapshot paths are checked before anything else starts.
-    let mut snapshot = match check_run_paths(cfg) {
-        Ok(file) => {
-            file.map(|f| stature::snapshot::Snapshot::with_file(cfg, &info, f, until_confident))
-        }
+    let (state, mut snapshot) = match check_run_paths(cfg) {
+        Ok(files) => (
+            files.state,
+            files
+                .snapshot
+                .map(|f| stature::snapshot::Snapshot::with_file(cfg, &info, f, until_confident)),
+        ),
         Err(r) => {
             log::error!("{}", r.message);
             return r.code;
@@ -682,10 +700,11 @@ fn run_source(
         status_interval_s: cfg.report.status_interval_s,
         stop,
         allocations: stature::alloc_count::allocations,
+        state,
     };
     let mut summary = match snapshot.as_mut() {
-        Some(s) => run::run_observed(cfg, src, &mut reporter, &opts, s),
-        None => run::run(cfg, src, &mut reporter, &opts),
+        Some(s) => run::run_observed(cfg, src, &mut reporter, opts, s),
+        None => run::run(cfg, src, &mut reporter, opts),
     };
     *outcome = (
         summary.calibration.take(),

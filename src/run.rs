@@ -124,8 +124,15 @@ impl Pipeline {
         }
     }
 
-    /// Allocates everything the loop will ever need for `info`'s frames.
+    /// Allocates everything the loop will ever need for `info`'s frames;
+    /// the calibration resumes from `run.state` when it is set.
     pub fn new(cfg: &Config, info: &SourceInfo) -> Self {
+        Self::with_state(cfg, info, None)
+    }
+
+    /// [`Pipeline::new`] with the state file already opened (`None`:
+    /// opened here from `run.state` when it is set).
+    pub fn with_state(cfg: &Config, info: &SourceInfo, state: Option<StateFile>) -> Self {
         let size = info.size;
         let max_regions = cfg.detect.region_capacity();
         Pipeline {
@@ -142,7 +149,7 @@ impl Pipeline {
             verdicts: Vec::with_capacity(max_regions),
             max_classified: cfg.classify.max_regions.min(max_regions),
             tracker: Tracker::new(&cfg.track, max_regions),
-            calib: Self::calibrator(cfg, info),
+            calib: Self::calibrator(cfg, info, state),
             measurer: Measurer::new(&cfg.measure, crate::track::RING),
             pending: PendingPool::new(cfg.measure.pending_tracks),
             pending_lost: 0,
@@ -155,15 +162,17 @@ impl Pipeline {
         }
     }
 
-    /// The calibrator, resumed from the state file when there is a usable one.
-    fn calibrator(cfg: &Config, info: &SourceInfo) -> Calibrator {
+    /// The calibrator, resumed from the state file when there is a usable
+    /// one (`opened`, else `run.state` opened here).
+    fn calibrator(cfg: &Config, info: &SourceInfo, opened: Option<StateFile>) -> Calibrator {
         let mut c = Calibrator::new(&cfg.calibrate, info.size.width, info.size.height);
         c.set_fps(stream_fps(info));
         if !cfg.run.state.is_empty() {
-            let k = cfg.calibrate.tracks * cfg.calibrate.anchors_per_track;
-            // About 135 bytes of JSON per anchor, under 200 at worst: the
-            // buffer never grows, so the writes do not allocate.
-            let file = match StateFile::open(std::path::Path::new(&cfg.run.state), 4096 + 200 * k) {
+            let opened = opened.map_or_else(
+                || StateFile::open(std::path::Path::new(&cfg.run.state), state_capacity(cfg)),
+                Ok,
+            );
+            let file = match opened {
                 Ok(f) => f,
                 Err(e) => {
                     log::warn!("calibration state {}: {e}; not kept", cfg.run.state);
@@ -555,6 +564,17 @@ pub struct LoopOptions<'a> {
     pub stop: &'a AtomicBool,
     /// Allocation count probe for status records.
     pub allocations: fn() -> u64,
+    /// The state file `run.state` names, already opened (its lock taken)
+    /// by the caller's start-up checks; `None`: the loop opens
+    /// `run.state` itself when it is set.
+    pub state: Option<StateFile>,
+}
+
+/// Bytes of serialisation buffer a state file needs for `cfg`'s anchor
+/// store: about 135 bytes of JSON per anchor, under 200 at worst, so the
+/// buffer never grows and the writes do not allocate.
+pub fn state_capacity(cfg: &Config) -> usize {
+    4096 + 200 * cfg.calibrate.tracks * cfg.calibrate.anchors_per_track
 }
 
 /// The memory a run on frames of `size` holds, in bytes, estimated so
@@ -663,7 +683,7 @@ pub fn run(
     cfg: &Config,
     source: &mut dyn FrameSource,
     reporter: &mut Reporter,
-    opts: &LoopOptions<'_>,
+    opts: LoopOptions<'_>,
 ) -> Summary {
     run_observed(cfg, source, reporter, opts, &mut ())
 }
@@ -673,11 +693,11 @@ pub fn run_observed(
     cfg: &Config,
     source: &mut dyn FrameSource,
     reporter: &mut Reporter,
-    opts: &LoopOptions<'_>,
+    mut opts: LoopOptions<'_>,
     observer: &mut dyn Observer,
 ) -> Summary {
     let info = source.info().clone();
-    let mut p = Pipeline::new(cfg, &info);
+    let mut p = Pipeline::with_state(cfg, &info, opts.state.take());
     reporter.send(Record::Hello(Hello {
         frame: 0,
         version: record::bounded(env!("CARGO_PKG_VERSION")),
@@ -806,6 +826,34 @@ mod tests {
             height: 16384,
         };
         assert!(memory_estimate(&Config::default(), huge) > 4 << 30);
+    }
+
+    #[test]
+    fn a_state_file_handed_to_the_pipeline_keeps_its_lock_for_the_run() {
+        let dir = crate::scratch::fresh_dir("run-state-handover");
+        let path = dir.join("state.json");
+        let mut cfg = Config::default();
+        cfg.run.state = path.to_str().unwrap().into();
+        let info = SourceInfo {
+            size: Size {
+                width: 320,
+                height: 240,
+            },
+            fps: (25, 1),
+            description: "test".into(),
+        };
+        let checked = StateFile::open(&path, state_capacity(&cfg)).unwrap();
+        assert!(!checked.in_use_elsewhere());
+        // The start-up check's file is the run's: opening the path again
+        // would find the check's own lock held and make the run a reader.
+        let p = Pipeline::with_state(&cfg, &info, Some(checked));
+        let kept = p.calib.state.as_ref().expect("the state is kept");
+        assert!(!kept.in_use_elsewhere());
+        // Held for as long as the pipeline lives...
+        assert!(StateFile::open(&path, 0).unwrap().in_use_elsewhere());
+        drop(p);
+        // ...and let go with it.
+        assert!(!StateFile::open(&path, 0).unwrap().in_use_elsewhere());
     }
 
     #[test]

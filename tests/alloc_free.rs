@@ -126,10 +126,11 @@ fn status_records_report_zero_allocations() {
         status_interval_s: cfg.report.status_interval_s,
         stop: &stop,
         allocations,
+        state: None,
     };
     let snap_path = dir.join("snapshot.png");
     let mut snap = stature::snapshot::Snapshot::new(&cfg, src.info(), &snap_path, false).unwrap();
-    let summary = run::run_observed(&cfg, &mut src, &mut reporter, &opts, &mut snap);
+    let summary = run::run_observed(&cfg, &mut src, &mut reporter, opts, &mut snap);
     reporter.finish(std::time::Duration::from_secs(5));
     io.join().unwrap();
     assert_eq!(summary.frames, 400);

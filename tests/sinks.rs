@@ -43,8 +43,9 @@ fn run_into(
         status_interval_s,
         stop: &stop,
         allocations: || 0,
+        state: None,
     };
-    let summary = run::run(&cfg, &mut src, &mut reporter, &opts);
+    let summary = run::run(&cfg, &mut src, &mut reporter, opts);
     reporter.finish(Duration::from_secs(10));
     io.join().unwrap();
     (

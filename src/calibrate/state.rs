@@ -141,10 +141,11 @@ pub fn lock_beside(path: &Path) -> PathBuf {
 }
 
 /// Attempts at the lock before a process leaves the state to its holder,
-/// [`LOCK_RETRY`] apart: a `config --check`, or the start-up check of a
-/// run, holds it for the moment it takes to create and remove the
-/// temporary file, and must not turn a service starting just then into a
-/// reader for its whole run.
+/// [`LOCK_RETRY`] apart: a `config --check` holds it for the moment it
+/// takes to create and remove the temporary file, and must not turn a
+/// service starting just then into a reader for its whole run. (A run
+/// holds it from its start-up check to its end: the checked file is
+/// handed to the loop, not opened twice.)
 const LOCK_TRIES: u32 = 10;
 /// Time between attempts at the lock.
 const LOCK_RETRY: std::time::Duration = std::time::Duration::from_millis(20);

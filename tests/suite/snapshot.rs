@@ -118,8 +118,9 @@ fn sim_run_snapshot_shows_the_estimated_horizon_and_every_live_track() {
         status_interval_s: 5.0,
         stop: &stop,
         allocations: || 0,
+        state: None,
     };
-    let summary = run::run_observed(&cfg, &mut sim, &mut reporter, &opts, &mut snap);
+    let summary = run::run_observed(&cfg, &mut sim, &mut reporter, opts, &mut snap);
     reporter.finish(std::time::Duration::from_secs(5));
     io.join().unwrap();
     assert_eq!(summary.frames, frames);
