@@ -59,6 +59,105 @@ pub fn tmp_beside(path: &Path) -> PathBuf {
     PathBuf::from(tmp)
 }
 
+/// A temporary file beside `target` that only this process writes: open,
+/// emptied, and holding an exclusive `flock` until it is closed (after
+/// the rename). `PATH.stature-tmp`, or `PATH.stature-tmp.PID` while
+/// another process holds that one: two processes replacing one file (a
+/// service and an installer's `stature snapshot` with its config) would
+/// otherwise write into one temporary file, and the second would go on
+/// writing into the first one's file after its rename put it in place.
+/// Each now renames a complete file of its own; the last one stays. On a
+/// file system without locks it is `PATH.stature-tmp`, unlocked, as before.
+pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
+    let shared = tmp_beside(target);
+    if let Some(file) = open_locked(&shared)? {
+        return Ok((shared, file));
+    }
+    let mut own = shared.into_os_string();
+    own.push(format!(".{}", std::process::id()));
+    let own = PathBuf::from(own);
+    match open_locked(&own)? {
+        Some(file) => Ok((own, file)),
+        None => Err(io::Error::new(
+            io::ErrorKind::WouldBlock,
+            format!("{} is in use by another process", own.display()),
+        )),
+    }
+}
+
+/// Opens `path` for writing (created if missing) and takes its exclusive
+/// lock without waiting; `None` when another process holds it. Emptied
+/// only once locked, so another writer's content is never cut short.
+fn open_locked(path: &Path) -> io::Result<Option<std::fs::File>> {
+    let fd = match lock_at(path, rustix::fs::OFlags::WRONLY)? {
+        Locked::Held(fd) | Locked::Unsupported(fd, _) => fd,
+        Locked::Busy => return Ok(None),
+    };
+    rustix::fs::ftruncate(&fd, 0).map_err(|e| {
+        let e = io::Error::from(e);
+        io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
+    })?;
+    Ok(Some(std::fs::File::from(fd)))
+}
+
+/// What [`lock_at`] got.
+pub(crate) enum Locked {
+    /// The exclusive lock of the file now at the path, held while the
+    /// descriptor is open.
+    Held(rustix::fd::OwnedFd),
+    /// Another process holds it.
+    Busy,
+    /// The file system cannot lock (NFS without lockd, some FUSE file
+    /// systems): the file, unlocked, and why (for the log).
+    Unsupported(rustix::fd::OwnedFd, io::Error),
+}
+
+/// Opens (creating it when missing) the regular file `path` with `access`
+/// (`RDONLY`: `flock` needs no write access) and tries its exclusive
+/// `flock` once, without waiting. Non-blocking open: a FIFO put at the
+/// path is refused instead of waited on. A holder that renamed or removed
+/// the file between this open and this lock leaves a lock on a file no
+/// longer at the path: then it opens again (a few times; a path whose
+/// file keeps being replaced under it counts as busy).
+pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Locked> {
+    use rustix::fs::{flock, fstat, open, stat, FileType, FlockOperation, Mode, OFlags};
+    let named = |e: rustix::io::Errno| {
+        let e = io::Error::from(e);
+        io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
+    };
+    for _ in 0..4 {
+        let fd = open(
+            path,
+            access | OFlags::CREATE | OFlags::CLOEXEC | OFlags::NONBLOCK,
+            Mode::from_raw_mode(0o644),
+        )
+        .map_err(named)?;
+        let meta = fstat(&fd).map_err(named)?;
+        if FileType::from_raw_mode(meta.st_mode) != FileType::RegularFile {
+            return Err(io::Error::other(format!(
+                "cannot create {}: not a regular file",
+                path.display()
+            )));
+        }
+        match flock(&fd, FlockOperation::NonBlockingLockExclusive) {
+            Ok(()) => {
+                let here =
+                    stat(path).is_ok_and(|b| b.st_dev == meta.st_dev && b.st_ino == meta.st_ino);
+                if here {
+                    return Ok(Locked::Held(fd));
+                }
+            }
+            Err(rustix::io::Errno::WOULDBLOCK) => return Ok(Locked::Busy),
+            Err(e) => {
+                let e = io::Error::from(e);
+                let why = io::Error::new(e.kind(), format!("cannot lock {}: {e}", path.display()));
+                return Ok(Locked::Unsupported(fd, why));
+            }
+        }
+    }
+    Ok(Locked::Busy)
+}
+
 /// Checks now, before any work whose result goes to `path`, that the file
 /// can be replaced later: [`target`] is resolved and `PATH.stature-tmp` is
 /// created and removed beside it (a missing or read-only directory, a full

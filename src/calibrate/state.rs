@@ -154,42 +154,14 @@ const LOCK_RETRY: std::time::Duration = std::time::Duration::from_millis(20);
 /// exclusive lock, without waiting more than [`LOCK_TRIES`] attempts.
 /// Opened read-only: `flock` needs no write access, and a lock file an
 /// installer created as root must still be usable by the service's user.
-/// Non-blocking: a FIFO put at the path would otherwise block the open
-/// until a writer came (on a regular file the flag changes nothing).
 fn take_lock(path: &Path) -> std::io::Result<Lock> {
-    use rustix::fs::{flock, fstat, open, stat, FlockOperation, Mode, OFlags};
+    use crate::replace::{lock_at, Locked};
     for _ in 0..LOCK_TRIES {
-        let fd = open(
-            path,
-            OFlags::RDONLY | OFlags::CREATE | OFlags::CLOEXEC | OFlags::NONBLOCK,
-            Mode::from_raw_mode(0o644),
-        )
-        .map_err(|e| {
-            let e = std::io::Error::from(e);
-            std::io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
-        })?;
-        match flock(&fd, FlockOperation::NonBlockingLockExclusive) {
-            Ok(()) => {
-                // The holder removes the lock file when it is done (see
-                // `Drop`): a lock taken on the file it removed locks
-                // nothing another process can see, so take the new one.
-                let same = match (fstat(&fd), stat(path)) {
-                    (Ok(a), Ok(b)) => a.st_dev == b.st_dev && a.st_ino == b.st_ino,
-                    _ => false,
-                };
-                if same {
-                    return Ok(Lock::Held(fd));
-                }
-            }
-            Err(rustix::io::Errno::WOULDBLOCK) => std::thread::sleep(LOCK_RETRY),
-            // NFS without lockd, some FUSE file systems: one process
-            // alone still works as it always did.
-            Err(e) => {
-                return Ok(Lock::None(Some(std::io::Error::new(
-                    std::io::Error::from(e).kind(),
-                    format!("cannot lock {}: {e}", path.display()),
-                ))))
-            }
+        match lock_at(path, rustix::fs::OFlags::RDONLY)? {
+            Locked::Held(fd) => return Ok(Lock::Held(fd)),
+            Locked::Busy => std::thread::sleep(LOCK_RETRY),
+            // One process alone still works as it always did.
+            Locked::Unsupported(_, e) => return Ok(Lock::None(Some(e))),
         }
     }
     Ok(Lock::Busy)

@@ -569,7 +569,8 @@ impl core::fmt::Display for SnapshotError {
 impl std::error::Error for SnapshotError {}
 
 /// The snapshot's file: a temporary file beside it, created (and so
-/// checked) at start-up, renamed over the path once the PNG is in it.
+/// checked) at start-up, renamed over the path once the PNG is in it
+/// ([`crate::replace::create_own_tmp`]: this process's alone).
 #[derive(Debug)]
 pub struct SnapshotFile {
     path: PathBuf,
@@ -591,8 +592,9 @@ impl SnapshotFile {
         if target.file_name().is_none() {
             return Err(err(io::Error::other("not a file name")));
         }
-        let tmp = crate::replace::tmp_beside(&target);
-        let file = File::create(&tmp).map_err(err)?;
+        // Its own temporary file, locked: another process writing this
+        // snapshot path uses another.
+        let (tmp, file) = crate::replace::create_own_tmp(&target).map_err(err)?;
         Ok(SnapshotFile {
             path: target,
             tmp,

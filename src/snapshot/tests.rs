@@ -310,6 +310,51 @@ fn snapshot_file_is_checked_at_creation_and_replaced_whole() {
 }
 
 #[test]
+fn two_writers_of_one_snapshot_path_each_put_a_whole_png_in_place() {
+    // A service and an installer's `stature snapshot` with its config:
+    // both hold the path's temporary file from their start. (Two opens in
+    // one process lock each other out as two processes do.)
+    let dir = scratch("two-writers");
+    let path = dir.join("view.png");
+    let mut first = SnapshotFile::create(&path).unwrap();
+    let mut second = SnapshotFile::create(&path).unwrap();
+    let shared = dir.join("view.png.stature-tmp");
+    let own = dir.join(format!("view.png.stature-tmp.{}", std::process::id()));
+    assert!(shared.exists() && own.exists());
+    let decode = || {
+        let mut r = png::Decoder::new(File::open(&path).unwrap())
+            .read_info()
+            .unwrap();
+        let mut buf = vec![0; r.output_buffer_size()];
+        let info = r.next_frame(&mut buf).unwrap();
+        buf.truncate(info.buffer_size());
+        buf
+    };
+    let a = grey();
+    let mut b = grey();
+    b.dim(
+        embedded_graphics::primitives::Rectangle::new(
+            embedded_graphics::prelude::Point::new(10, 10),
+            embedded_graphics::prelude::Size::new(200, 100),
+        ),
+        64,
+    );
+    assert_ne!(a.rgb(), b.rgb());
+    first.write(&a).unwrap();
+    assert_eq!(decode(), a.rgb());
+    // Before: the second wrote into the file the first had just put in
+    // place (a torn PNG) and then failed to rename.
+    second.write(&b).unwrap();
+    assert_eq!(decode(), b.rgb());
+    assert!(!shared.exists() && !own.exists());
+    // The shared name is free again for the next one.
+    let third = SnapshotFile::create(&path).unwrap();
+    assert!(shared.exists());
+    drop(third);
+    assert!(!shared.exists());
+}
+
+#[test]
 fn only_png_names_or_no_extension_are_accepted() {
     for ok in [
         "s.png",
