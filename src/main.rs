@@ -433,9 +433,9 @@ fn check_run_paths(cfg: &Config) -> Result<RunFiles, Refused> {
 
 /// What `config --check` can know of the sinks without sending anything,
 /// through the calls `run` makes at start-up: a UDP host resolves, an MQTT
-/// sink's TLS roots (`ca=`) load. Files and serial ports are not opened
-/// here (that would create the file or toggle the port's lines); `run`
-/// finds a problem with those when it starts.
+/// sink's TLS roots (`ca=`) load. Files and serial ports are checked
+/// without being opened for good (`sink::check_local`: that would create
+/// the file or toggle the port's lines).
 fn check_sinks(cfg: &Config) -> Result<(), Refused> {
     use stature::report::sink::{Sink, SinkSpec};
     let refused = |e: &dyn std::fmt::Display| Refused {
@@ -464,7 +464,10 @@ fn check_sinks(cfg: &Config) -> Result<(), Refused> {
             SinkSpec::Udp(_) => {
                 drop(Sink::open_with(spec, &cfg.report.mqtt).map_err(|e| refused(&e))?)
             }
-            SinkSpec::Stdout | SinkSpec::File(_) | SinkSpec::Serial { .. } => {}
+            SinkSpec::File(_) | SinkSpec::Serial { .. } => {
+                stature::report::sink::check_local(spec).map_err(|e| refused(&e))?
+            }
+            SinkSpec::Stdout => {}
         }
     }
     Ok(())

@@ -469,6 +469,70 @@ impl Sink {
 /// forever and that no signal ends; a full FIFO then fails a write (the
 /// record is lost at this sink and counted) instead of stalling the I/O
 /// thread, and with it the end of the run. Regular files ignore the flag.
+/// What can be known of a `file:` or `serial:` sink without opening it
+/// for good (`config --check`): opening would create the file, or toggle
+/// a serial port's modem lines and reset the board on the other end. The
+/// errors read as [`Sink::open_with`]'s. Other sinks: nothing to check.
+///
+/// - file: an existing one is opened for appending, without creating or
+///   writing anything (a FIFO is left alone: its reader may start after
+///   the check); a missing one needs a writable directory.
+/// - serial: the path is a character device this process may read and
+///   write.
+pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
+    use rustix::fs::{access, Access};
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    match spec {
+        SinkSpec::File(p) => {
+            let named = |e: io::Error| io::Error::new(e.kind(), format!("report file `{p}`: {e}"));
+            match std::fs::metadata(p) {
+                Ok(m) if m.file_type().is_fifo() => Ok(()),
+                Ok(_) => std::fs::OpenOptions::new()
+                    .append(true)
+                    .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+                    .open(p)
+                    .map(drop)
+                    .map_err(named),
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                    let dir = match std::path::Path::new(p).parent() {
+                        Some(d) if !d.as_os_str().is_empty() => d,
+                        _ => std::path::Path::new("."),
+                    };
+                    access(dir, Access::WRITE_OK | Access::EXEC_OK).map_err(|e| named(e.into()))
+                }
+                Err(e) => Err(named(e)),
+            }
+        }
+        SinkSpec::Serial { path, .. } => {
+            let named = |e: io::Error| {
+                io::Error::new(
+                    io::ErrorKind::NotFound,
+                    format!("serial port `{path}`: {e}"),
+                )
+            };
+            use std::os::unix::fs::MetadataExt;
+            let m = std::fs::metadata(path).map_err(named)?;
+            if !m.file_type().is_char_device() {
+                return Err(named(io::Error::other("not a serial device")));
+            }
+            // The kernel's class of the device (`/dev/null` is `mem`);
+            // pseudo-terminals have no entry and pass.
+            let (major, minor) = (rustix::fs::major(m.rdev()), rustix::fs::minor(m.rdev()));
+            let class = std::fs::read_link(format!("/sys/dev/char/{major}:{minor}/subsystem"));
+            if let Some(class) = class.ok().as_deref().and_then(|c| c.file_name()) {
+                if class != "tty" {
+                    return Err(named(io::Error::other(format!(
+                        "not a serial device (a {} device)",
+                        class.to_string_lossy()
+                    ))));
+                }
+            }
+            access(path.as_str(), Access::READ_OK | Access::WRITE_OK).map_err(|e| named(e.into()))
+        }
+        SinkSpec::Stdout | SinkSpec::Udp(_) | SinkSpec::Mqtt(_) => Ok(()),
+    }
+}
+
 fn open_report_file(path: &str) -> io::Result<std::fs::File> {
     use std::os::unix::fs::OpenOptionsExt;
     std::fs::OpenOptions::new()

@@ -1404,7 +1404,21 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
             "[run]\nsnapshot = \"/nonexistent-dir/x.png\"\n",
             "cannot write snapshot /nonexistent-dir/x.png",
         ),
+        (
+            "[report]\nsinks = [\"file:/nonexistent-dir/r.jsonl\"]\n",
+            "report file `/nonexistent-dir/r.jsonl`: No such file or directory",
+        ),
+        (
+            "[report]\nsinks = [\"serial:/nonexistent-dir/ttyS9?baud=9600\"]\n",
+            "serial port `/nonexistent-dir/ttyS9`: No such file or directory",
+        ),
+        (
+            "[report]\nsinks = [\"serial:/dev/null?baud=9600\"]\n",
+            "serial port `/dev/null`: ",
+        ),
     ];
+    // (`run` says "Not a typewriter" for /dev/null, the check "not a
+    // serial device (a mem device)": both name the port.)
     for (i, (toml, want)) in cases.iter().enumerate() {
         let cfg = dir.join(format!("{i}.toml"));
         std::fs::write(&cfg, toml).unwrap();
@@ -1426,12 +1440,17 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
     // Paths that can be written pass, and the check leaves nothing behind.
     let out = dir.join("out");
     std::fs::create_dir(&out).unwrap();
+    // An existing report file is opened to append, and left as it was.
+    let existing = dir.join("existing.jsonl");
+    std::fs::write(&existing, b"{}\n").unwrap();
     let cfg = dir.join("ok.toml");
     std::fs::write(
         &cfg,
         format!(
-            "[run]\nstate = \"{0}/x.state\"\nsnapshot = \"{0}/x.png\"\n",
-            out.display()
+            "[run]\nstate = \"{0}/x.state\"\nsnapshot = \"{0}/x.png\"\n\
+             [report]\nsinks = [\"file:{0}/r.jsonl\", \"file:{1}\"]\n",
+            out.display(),
+            existing.display()
         ),
     )
     .unwrap();
@@ -1443,6 +1462,7 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0);
+    assert_eq!(std::fs::read(&existing).unwrap(), b"{}\n");
 }
 
 /// An MQTT `ca=` path naming a FIFO is refused at start-up, by `run` and
