@@ -297,10 +297,12 @@ fn destination(spec: &crate::report::sink::SinkSpec) -> Option<String> {
 
 /// `path` as the file system resolves it: symbolic links and `.`/`..`
 /// followed, so `a.jsonl`, `./a.jsonl` and a link to it are one file; a
-/// file not created yet is resolved through its directory; as written when
-/// neither resolves.
+/// file not created yet (also behind a dangling link, which a write
+/// creates) is resolved through its directory; as written when neither
+/// resolves.
 fn resolved_path(path: &str) -> String {
-    let p = Path::new(path);
+    let followed = crate::replace::follow_links(Path::new(path)).map(|(p, _)| p);
+    let p = followed.as_deref().unwrap_or(Path::new(path));
     std::fs::canonicalize(p)
         .or_else(|_| {
             let dir = match p.parent() {
@@ -534,6 +536,8 @@ mod tests {
         let link = dir.join("link.jsonl");
         let _ = std::fs::remove_file(&link);
         std::os::unix::fs::symlink(&file, &link).unwrap();
+        // A link to a file not created yet: the first write creates it.
+        std::os::unix::fs::symlink("later.jsonl", dir.join("dangling.jsonl")).unwrap();
         let d = dir.display();
         let sinks = |a: String, b: String| ReportConfig {
             sinks: vec![a, b],
@@ -549,6 +553,10 @@ mod tests {
                     "file:{d}/../{}/new.jsonl",
                     dir.file_name().unwrap().to_string_lossy()
                 ),
+            ),
+            (
+                format!("file:{d}/later.jsonl"),
+                format!("file:{d}/dangling.jsonl"),
             ),
             (
                 format!("serial:{d}/a.jsonl?baud=9600"),

@@ -313,7 +313,8 @@ struct ConfigArgs {
     print_defaults: bool,
     /// Check a configuration file and report the first problem, including
     /// what `run` would refuse at start-up (the state and snapshot paths,
-    /// a UDP host, an MQTT CA file), as the user who runs the check.
+    /// report files, serial ports, a UDP host, an MQTT CA file), as the
+    /// user who runs the check.
     #[arg(long)]
     check: Option<PathBuf>,
     /// With --check: the keys and values only, not the start-up checks (for

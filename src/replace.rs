@@ -24,30 +24,35 @@ const MAX_LINKS: usize = 40;
 /// exist yet). Fails when that exists and is not a regular file, or the
 /// chain does not end.
 pub fn target(path: &Path) -> io::Result<PathBuf> {
+    let (p, meta) = follow_links(path)?;
+    match meta {
+        Some(m) if m.is_dir() => Err(io::Error::other("it is a directory")),
+        Some(m) if !m.is_file() => Err(io::Error::other(
+            "not a regular file (it would be replaced by one on every write)",
+        )),
+        _ => Ok(p),
+    }
+}
+
+/// The end of `path`'s chain of symbolic links, with its metadata, or
+/// `None` when nothing is there yet (a dangling link's target: the file
+/// a write through the link creates). Fails when the chain does not end.
+pub fn follow_links(path: &Path) -> io::Result<(PathBuf, Option<std::fs::Metadata>)> {
     let mut p = path.to_path_buf();
     for _ in 0..MAX_LINKS {
         let meta = match std::fs::symlink_metadata(&p) {
             Ok(m) => m,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(p),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok((p, None)),
             Err(e) => return Err(e),
         };
-        if meta.file_type().is_symlink() {
-            let to = std::fs::read_link(&p)?;
-            p = match p.parent() {
-                Some(dir) if to.is_relative() => dir.join(to),
-                _ => to,
-            };
-            continue;
+        if !meta.file_type().is_symlink() {
+            return Ok((p, Some(meta)));
         }
-        if meta.is_dir() {
-            return Err(io::Error::other("it is a directory"));
-        }
-        if !meta.is_file() {
-            return Err(io::Error::other(
-                "not a regular file (it would be replaced by one on every write)",
-            ));
-        }
-        return Ok(p);
+        let to = std::fs::read_link(&p)?;
+        p = match p.parent() {
+            Some(dir) if to.is_relative() => dir.join(to),
+            _ => to,
+        };
     }
     Err(io::Error::other("too many levels of symbolic links"))
 }
@@ -70,18 +75,24 @@ pub fn tmp_beside(path: &Path) -> PathBuf {
 /// file system without locks it is `PATH.stature-tmp`, unlocked, as before.
 pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
     let shared = tmp_beside(target);
-    if let Some(file) = open_locked(&shared)? {
-        return Ok((shared, file));
-    }
+    let first = match open_locked(&shared) {
+        Ok(Some(file)) => return Ok((shared, file)),
+        Ok(None) => None,
+        // Something left at the name that this process cannot use (a
+        // FIFO, another user's file): a name of its own will do as well.
+        Err(e) => Some(e),
+    };
     let mut own = shared.into_os_string();
     own.push(format!(".{}", std::process::id()));
     let own = PathBuf::from(own);
-    match open_locked(&own)? {
-        Some(file) => Ok((own, file)),
-        None => Err(io::Error::new(
+    match open_locked(&own) {
+        Ok(Some(file)) => Ok((own, file)),
+        Ok(None) => Err(io::Error::new(
             io::ErrorKind::WouldBlock,
             format!("{} is in use by another process", own.display()),
         )),
+        // Both failed (an unwritable directory): the shared name's reason.
+        Err(e) => Err(first.unwrap_or(e)),
     }
 }
 
@@ -123,6 +134,17 @@ pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Loc
     use rustix::fs::{flock, fstat, open, stat, FileType, FlockOperation, Mode, OFlags};
     let named = |e: rustix::io::Errno| {
         let e = io::Error::from(e);
+        // A FIFO with no reader fails the open itself (ENXIO): say what
+        // is in the way rather than the errno's words.
+        if std::fs::symlink_metadata(path).is_ok_and(|m| !m.is_file()) {
+            return io::Error::new(
+                e.kind(),
+                format!(
+                    "cannot create {}: something not a regular file is there",
+                    path.display()
+                ),
+            );
+        }
         io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
     };
     for _ in 0..4 {
@@ -135,7 +157,7 @@ pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Loc
         let meta = fstat(&fd).map_err(named)?;
         if FileType::from_raw_mode(meta.st_mode) != FileType::RegularFile {
             return Err(io::Error::other(format!(
-                "cannot create {}: not a regular file",
+                "cannot create {}: something not a regular file is there",
                 path.display()
             )));
         }

@@ -576,6 +576,13 @@ impl Calibrator {
         if self.state.is_some() {
             self.save_state();
         }
+        if let Some(st) = self.state.as_ref().filter(|st| st.in_use_elsewhere()) {
+            log::warn!(
+                "calibration state {}: not saved ({} to the end of this run)",
+                st.path().display(),
+                state::IN_USE
+            );
+        }
         self.estimate.map(|e| e.record(frame, true))
     }
 

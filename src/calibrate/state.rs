@@ -115,6 +115,7 @@ impl core::fmt::Display for StateError {
 pub struct StateFile {
     path: PathBuf,
     tmp: PathBuf,
+    lock_path: PathBuf,
     dir: PathBuf,
     buf: Vec<u8>,
     lock: Lock,
@@ -203,6 +204,7 @@ impl StateFile {
         StateFile {
             path: path.to_path_buf(),
             tmp: crate::replace::tmp_beside(path),
+            lock_path: lock_beside(path),
             dir,
             buf: Vec::with_capacity(capacity),
             lock: Lock::None(None),
@@ -227,11 +229,31 @@ impl StateFile {
         let mut file = StateFile::new(&target, capacity);
         // Taken before the probe: the probe's temporary file is the
         // holder's, and dropping `file` on an error removes the lock file.
-        file.lock = take_lock(&lock_beside(&target)).map_err(StateError::Io)?;
+        file.lock = take_lock(&file.lock_path).map_err(StateError::Io)?;
         if !file.in_use_elsewhere() {
             crate::replace::probe(&target).map_err(StateError::Io)?;
         }
         Ok(file)
+    }
+
+    /// A reader tries the lock once more (without waiting), so that a run
+    /// that started while another held the state (a service restarted
+    /// during an installer's `stature snapshot`) writes it once that one
+    /// is gone, instead of never. Its calibration then replaces what the
+    /// other wrote after this run resumed. Returns whether it now writes.
+    fn take_over(&mut self) -> bool {
+        use crate::replace::{lock_at, Locked};
+        match lock_at(&self.lock_path, rustix::fs::OFlags::RDONLY) {
+            Ok(Locked::Held(fd)) => {
+                self.lock = Lock::Held(fd);
+                log::info!(
+                    "calibration state {}: the other stature process let it go; this run writes it from now on",
+                    self.path.display()
+                );
+                true
+            }
+            _ => false,
+        }
     }
 
     /// Another stature process holds the state's lock: this one may read
@@ -317,7 +339,7 @@ impl StateFile {
     /// Writes atomically: temp file, fsync, rename, fsync of the directory.
     /// Does nothing when another process holds the lock.
     pub(super) fn write(&mut self, view: &StateView<'_>) -> Result<(), StateError> {
-        if self.in_use_elsewhere() {
+        if self.in_use_elsewhere() && !self.take_over() {
             return Ok(());
         }
         self.buf.clear();

@@ -332,6 +332,13 @@ fn only_the_first_to_open_a_state_file_writes_it() {
     assert!(!third.in_use_elsewhere());
     assert!(state::StateFile::open(&path, 0).unwrap().in_use_elsewhere());
     drop(third);
+    // The second, a reader since its start, takes the state over at its
+    // next write now that nobody holds it (before: never, to its end).
+    std::fs::remove_file(&path).unwrap();
+    second.finish(late.last().unwrap().frame);
+    assert!(!second.state.as_ref().unwrap().in_use_elsewhere());
+    assert!(state::StateFile::new(&path, 0).load().unwrap().is_some());
+    assert!(lock.exists());
     drop(second);
     assert!(!lock.exists());
     // A FIFO at the lock's path does not block the open.

@@ -464,11 +464,6 @@ impl Sink {
     }
 }
 
-/// Opens a report file for appending. Non-blocking, so that a FIFO with
-/// no reader is an error now (`ENXIO`) rather than an open that waits
-/// forever and that no signal ends; a full FIFO then fails a write (the
-/// record is lost at this sink and counted) instead of stalling the I/O
-/// thread, and with it the end of the run. Regular files ignore the flag.
 /// What can be known of a `file:` or `serial:` sink without opening it
 /// for good (`config --check`): opening would create the file, or toggle
 /// a serial port's modem lines and reset the board on the other end. The
@@ -485,22 +480,28 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
     match spec {
         SinkSpec::File(p) => {
             let named = |e: io::Error| io::Error::new(e.kind(), format!("report file `{p}`: {e}"));
-            match std::fs::metadata(p) {
-                Ok(m) if m.file_type().is_fifo() => Ok(()),
-                Ok(_) => std::fs::OpenOptions::new()
+            // Where a write lands: the end of a chain of links (a
+            // dangling link's write creates its target).
+            let (target, meta) = crate::replace::follow_links(p.as_ref()).map_err(named)?;
+            match meta {
+                Some(m) if m.file_type().is_fifo() => Ok(()),
+                Some(_) => std::fs::OpenOptions::new()
                     .append(true)
                     .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
                     .open(p)
                     .map(drop)
                     .map_err(named),
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                    let dir = match std::path::Path::new(p).parent() {
+                // `new/` names a directory, which open(2) does not create.
+                None if target.as_os_str().as_encoded_bytes().ends_with(b"/") => Err(named(
+                    io::Error::from_raw_os_error(rustix::io::Errno::ISDIR.raw_os_error()),
+                )),
+                None => {
+                    let dir = match target.parent() {
                         Some(d) if !d.as_os_str().is_empty() => d,
                         _ => std::path::Path::new("."),
                     };
                     access(dir, Access::WRITE_OK | Access::EXEC_OK).map_err(|e| named(e.into()))
                 }
-                Err(e) => Err(named(e)),
             }
         }
         SinkSpec::Serial { path, .. } => {
@@ -515,16 +516,31 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
             if !m.file_type().is_char_device() {
                 return Err(named(io::Error::other("not a serial device")));
             }
-            // The kernel's class of the device (`/dev/null` is `mem`);
-            // pseudo-terminals have no entry and pass.
             let (major, minor) = (rustix::fs::major(m.rdev()), rustix::fs::minor(m.rdev()));
+            // /dev/tty (the controlling terminal: none under a service)
+            // and /dev/ptmx (a new pseudo-terminal nothing reads).
+            if major == 5 && (minor == 0 || minor == 2) {
+                return Err(named(io::Error::other("not a serial device")));
+            }
+            // The kernel's class of the device (`/dev/null` is `mem`). A
+            // node with no entry has no driver behind it (a stale
+            // /dev/ttyUSB0), except pseudo-terminals (majors 136-143),
+            // which sysfs does not list; without sysfs nothing is known.
             let class = std::fs::read_link(format!("/sys/dev/char/{major}:{minor}/subsystem"));
-            if let Some(class) = class.ok().as_deref().and_then(|c| c.file_name()) {
-                if class != "tty" {
+            match class.ok().as_deref().and_then(|c| c.file_name()) {
+                Some(c) if c == "tty" => {}
+                Some(c) => {
                     return Err(named(io::Error::other(format!(
                         "not a serial device (a {} device)",
-                        class.to_string_lossy()
-                    ))));
+                        c.to_string_lossy()
+                    ))))
+                }
+                None if (136..=143).contains(&major)
+                    || !std::path::Path::new("/sys/dev/char").is_dir() => {}
+                None => {
+                    return Err(named(io::Error::other(format!(
+                        "no device driver behind it (character device {major}:{minor})"
+                    ))))
                 }
             }
             access(path.as_str(), Access::READ_OK | Access::WRITE_OK).map_err(|e| named(e.into()))
@@ -533,6 +549,11 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
     }
 }
 
+/// Opens a report file for appending. Non-blocking, so that a FIFO with
+/// no reader is an error now (`ENXIO`) rather than an open that waits
+/// forever and that no signal ends; a full FIFO then fails a write (the
+/// record is lost at this sink and counted) instead of stalling the I/O
+/// thread, and with it the end of the run. Regular files ignore the flag.
 fn open_report_file(path: &str) -> io::Result<std::fs::File> {
     use std::os::unix::fs::OpenOptionsExt;
     std::fs::OpenOptions::new()
@@ -794,6 +815,42 @@ mod tests {
                 format!("config key `report.sinks` = {bad}: {reason}")
             );
         }
+    }
+
+    #[test]
+    fn a_check_follows_links_and_names_what_a_run_would_refuse() {
+        let dir = crate::scratch::fresh_dir("sink-check");
+        let d = dir.display();
+        let check =
+            |s: String| check_local(&SinkSpec::parse(&s).unwrap()).map_err(|e| e.to_string());
+        std::os::unix::fs::symlink(dir.join("nodir/x.jsonl"), dir.join("into-nothing")).unwrap();
+        std::os::unix::fs::symlink("later.jsonl", dir.join("later-link")).unwrap();
+        let e = check(format!("file:{d}/into-nothing")).unwrap_err();
+        assert!(e.contains("No such file or directory"), "{e}");
+        assert_eq!(check(format!("file:{d}/later-link")), Ok(()));
+        let e = check(format!("file:{d}/new/")).unwrap_err();
+        assert!(e.contains("Is a directory"), "{e}");
+        assert_eq!(check(format!("file:{d}/new.jsonl")), Ok(()));
+        // Nothing was created.
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        for (port, why) in [
+            ("/dev/null", "(a mem device)"),
+            ("/dev/ptmx", "not a serial device"),
+            ("/dev/tty", "not a serial device"),
+        ] {
+            let e = check(format!("serial:{port}?baud=9600")).unwrap_err();
+            assert!(e.contains(why), "{port}: {e}");
+        }
+        // A pseudo-terminal: no sysfs entry, and a serial port all the same.
+        use rustix::pty::{grantpt, openpt, ptsname, unlockpt, OpenptFlags};
+        let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY).unwrap();
+        grantpt(&master).unwrap();
+        unlockpt(&master).unwrap();
+        let name = ptsname(&master, Vec::new()).unwrap();
+        assert_eq!(
+            check(format!("serial:{}?baud=9600", name.to_string_lossy())),
+            Ok(())
+        );
     }
 
     #[test]

@@ -633,8 +633,11 @@ impl SnapshotFile {
 impl Drop for SnapshotFile {
     fn drop(&mut self) {
         // Never written (the run did not get to its end): no stray file.
-        if self.file.take().is_some() {
+        // Removed before the file is closed, while its lock still keeps
+        // another process from taking that name up in between.
+        if let Some(file) = self.file.take() {
             let _ = std::fs::remove_file(&self.tmp);
+            drop(file);
         }
     }
 }

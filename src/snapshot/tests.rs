@@ -355,6 +355,28 @@ fn two_writers_of_one_snapshot_path_each_put_a_whole_png_in_place() {
 }
 
 #[test]
+fn something_left_at_the_temporary_name_is_stepped_around() {
+    // A FIFO at `PATH.stature-tmp` failed the run at start (ENXIO); so
+    // would another user's file there. A name of the process's own does.
+    let dir = scratch("left-behind");
+    let path = dir.join("view.png");
+    let shared = dir.join("view.png.stature-tmp");
+    crate::scratch::mkfifo(&shared);
+    let mut f = SnapshotFile::create(&path).unwrap();
+    f.write(&grey()).unwrap();
+    assert!(png::Decoder::new(File::open(&path).unwrap())
+        .read_info()
+        .is_ok());
+    // What was there is not this process's to remove.
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 2, "{left:?}");
+    assert!(shared.exists());
+}
+
+#[test]
 fn only_png_names_or_no_extension_are_accepted() {
     for ok in [
         "s.png",

@@ -1,8 +1,9 @@
 //! Two stature processes on one calibration state file (the installer's
 //! `stature snapshot` with the service's config while the service runs):
 //! the first to open the state writes it; another resumes from it, says
-//! once that it will not update it, and leaves it as it was. Before, both
-//! wrote through one temporary file and readers saw torn state files.
+//! that it will not update it (and, at its end, that it did not), and
+//! leaves it as it was. Before, both wrote through one temporary file and
+//! readers saw torn state files.
 
 use stature::calibrate::state::{StateFile, IN_USE};
 
@@ -41,10 +42,11 @@ fn a_second_process_resumes_from_the_state_but_never_writes_it() {
     assert!(err.contains("resumed"), "{err}");
     assert_eq!(
         err.matches(IN_USE).count(),
-        1,
-        "one warning that the state is in use: {err}"
+        2,
+        "one warning that the state is in use, one at the end: {err}"
     );
     assert!(err.contains("will not update it"), "{err}");
+    assert!(err.contains("not saved"), "{err}");
     assert!(!err.contains("No such file"), "{err}");
     assert_eq!(std::fs::read(&state).unwrap(), written, "left as it was");
     // A config check while the service runs still passes.
