@@ -76,23 +76,67 @@ pub fn tmp_beside(path: &Path) -> PathBuf {
 pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
     let shared = tmp_beside(target);
     let first = match open_locked(&shared) {
-        Ok(Some(file)) => return Ok((shared, file)),
+        Ok(Some(file)) => {
+            remove_abandoned(&shared, &shared);
+            return Ok((shared, file));
+        }
         Ok(None) => None,
         // Something left at the name that this process cannot use (a
         // FIFO, another user's file): a name of its own will do as well.
         Err(e) => Some(e),
     };
-    let mut own = shared.into_os_string();
+    let mut own = shared.clone().into_os_string();
     own.push(format!(".{}", std::process::id()));
     let own = PathBuf::from(own);
     match open_locked(&own) {
-        Ok(Some(file)) => Ok((own, file)),
+        Ok(Some(file)) => {
+            remove_abandoned(&shared, &own);
+            Ok((own, file))
+        }
         Ok(None) => Err(io::Error::new(
             io::ErrorKind::WouldBlock,
             format!("{} is in use by another process", own.display()),
         )),
         // Both failed (an unwritable directory): the shared name's reason.
         Err(e) => Err(first.unwrap_or(e)),
+    }
+}
+
+/// Removes the `SHARED.PID` files beside `shared` that no process holds
+/// (but `mine`): left by a second writer killed before its rename, they
+/// would otherwise stay for good, as later writers take the shared name.
+/// A live writer holds its file's lock, so its file is left alone; so is
+/// a file this process may not open.
+fn remove_abandoned(shared: &Path, mine: &Path) {
+    let (Some(name), dir) = (shared.file_name(), shared.parent()) else {
+        return;
+    };
+    let dir = match dir {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let pid = file
+            .as_encoded_bytes()
+            .strip_prefix(name.as_encoded_bytes())
+            .and_then(|rest| rest.strip_prefix(b"."));
+        if !pid.is_some_and(|p| !p.is_empty() && p.iter().all(u8::is_ascii_digit)) {
+            continue;
+        }
+        let path = entry.path();
+        if path == mine {
+            continue;
+        }
+        if let Ok(Locked::Held(fd)) = lock_at(&path, rustix::fs::OFlags::WRONLY) {
+            // Removed while locked: a writer that opened it just now
+            // finds it gone from the path once it gets the lock.
+            let _ = std::fs::remove_file(&path);
+            drop(fd);
+        }
     }
 }
 

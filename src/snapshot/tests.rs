@@ -377,6 +377,25 @@ fn something_left_at_the_temporary_name_is_stepped_around() {
 }
 
 #[test]
+fn a_killed_writers_temporary_file_is_removed_by_the_next_one() {
+    let dir = scratch("abandoned");
+    let path = dir.join("view.png");
+    let tmp = |pid: &str| dir.join(format!("view.png.stature-tmp.{pid}"));
+    // Left by a second writer killed mid-run, and one a live writer holds.
+    std::fs::write(tmp("999999"), b"half a png").unwrap();
+    let live = crate::replace::lock_at(&tmp("424242"), rustix::fs::OFlags::WRONLY).unwrap();
+    assert!(matches!(live, crate::replace::Locked::Held(_)));
+    // Not of this kind: left alone.
+    std::fs::write(tmp("notes"), b"x").unwrap();
+    let f = SnapshotFile::create(&path).unwrap();
+    assert!(!tmp("999999").exists(), "abandoned: removed");
+    assert!(tmp("424242").exists(), "held: kept");
+    assert!(tmp("notes").exists());
+    drop(f);
+    drop(live);
+}
+
+#[test]
 fn only_png_names_or_no_extension_are_accepted() {
     for ok in [
         "s.png",
