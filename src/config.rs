@@ -305,12 +305,9 @@ fn resolved_path(path: &str) -> String {
     let p = followed.as_deref().unwrap_or(Path::new(path));
     std::fs::canonicalize(p)
         .or_else(|_| {
-            let dir = match p.parent() {
-                Some(d) if !d.as_os_str().is_empty() => d,
-                _ => Path::new("."),
-            };
             Ok::<_, std::io::Error>(
-                std::fs::canonicalize(dir)?.join(p.file_name().unwrap_or_default()),
+                std::fs::canonicalize(crate::replace::dir_of(p))?
+                    .join(p.file_name().unwrap_or_default()),
             )
         })
         .map_or_else(|_| path.to_string(), |p| p.display().to_string())

@@ -57,6 +57,14 @@ pub fn follow_links(path: &Path) -> io::Result<(PathBuf, Option<std::fs::Metadat
     Err(io::Error::other("too many levels of symbolic links"))
 }
 
+/// The directory `path` is in: its parent, or `.` for a bare file name.
+pub fn dir_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
 /// `PATH.stature-tmp`: the temporary file beside `path`.
 pub fn tmp_beside(path: &Path) -> PathBuf {
     let mut tmp = path.as_os_str().to_owned();
@@ -108,14 +116,10 @@ pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
 /// A live writer holds its file's lock, so its file is left alone; so is
 /// a file this process may not open.
 fn remove_abandoned(shared: &Path, mine: &Path) {
-    let (Some(name), dir) = (shared.file_name(), shared.parent()) else {
+    let Some(name) = shared.file_name() else {
         return;
     };
-    let dir = match dir {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let Ok(entries) = std::fs::read_dir(dir) else {
+    let Ok(entries) = std::fs::read_dir(dir_of(shared)) else {
         return;
     };
     for entry in entries.flatten() {

@@ -197,15 +197,11 @@ impl StateFile {
     /// A state file at `path`; `capacity` bytes of serialisation buffer.
     /// Nothing is checked: [`StateFile::open`] is what a run uses.
     pub fn new(path: &Path, capacity: usize) -> Self {
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
         StateFile {
             path: path.to_path_buf(),
             tmp: crate::replace::tmp_beside(path),
             lock_path: lock_beside(path),
-            dir,
+            dir: crate::replace::dir_of(path).to_path_buf(),
             buf: Vec::with_capacity(capacity),
             lock: Lock::None(None),
         }

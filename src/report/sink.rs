@@ -495,13 +495,11 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
                 None if target.as_os_str().as_encoded_bytes().ends_with(b"/") => Err(named(
                     io::Error::from_raw_os_error(rustix::io::Errno::ISDIR.raw_os_error()),
                 )),
-                None => {
-                    let dir = match target.parent() {
-                        Some(d) if !d.as_os_str().is_empty() => d,
-                        _ => std::path::Path::new("."),
-                    };
-                    access(dir, Access::WRITE_OK | Access::EXEC_OK).map_err(|e| named(e.into()))
-                }
+                None => access(
+                    crate::replace::dir_of(&target),
+                    Access::WRITE_OK | Access::EXEC_OK,
+                )
+                .map_err(|e| named(e.into())),
             }
         }
         SinkSpec::Serial { path, .. } => {
