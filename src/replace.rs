@@ -85,7 +85,7 @@ pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
     let shared = tmp_beside(target);
     let first = match open_locked(&shared) {
         Ok(Some(file)) => {
-            remove_abandoned(&shared, &shared);
+            remove_abandoned(&shared);
             return Ok((shared, file));
         }
         Ok(None) => None,
@@ -98,7 +98,7 @@ pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
     let own = PathBuf::from(own);
     match open_locked(&own) {
         Ok(Some(file)) => {
-            remove_abandoned(&shared, &own);
+            remove_abandoned(&shared);
             Ok((own, file))
         }
         Ok(None) => Err(io::Error::new(
@@ -110,12 +110,13 @@ pub fn create_own_tmp(target: &Path) -> io::Result<(PathBuf, std::fs::File)> {
     }
 }
 
-/// Removes the `SHARED.PID` files beside `shared` that no process holds
-/// (but `mine`): left by a second writer killed before its rename, they
-/// would otherwise stay for good, as later writers take the shared name.
-/// A live writer holds its file's lock, so its file is left alone; so is
-/// a file this process may not open.
-fn remove_abandoned(shared: &Path, mine: &Path) {
+/// Removes the `SHARED.PID` files beside `shared` that no process holds:
+/// left by a second writer killed before its rename, they would otherwise
+/// stay for good, as later writers take the shared name. A live writer
+/// holds its file's lock, so its file is left alone (this process's own
+/// too: a lock held through another open file is busy to this one); so
+/// is a file this process may not open.
+fn remove_abandoned(shared: &Path) {
     let Some(name) = shared.file_name() else {
         return;
     };
@@ -132,9 +133,6 @@ fn remove_abandoned(shared: &Path, mine: &Path) {
             continue;
         }
         let path = entry.path();
-        if path == mine {
-            continue;
-        }
         if let Ok(Locked::Held(fd)) = lock_at(&path, rustix::fs::OFlags::WRONLY) {
             // Removed while locked: a writer that opened it just now
             // finds it gone from the path once it gets the lock.
@@ -180,18 +178,18 @@ pub(crate) enum Locked {
 /// file keeps being replaced under it counts as busy).
 pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Locked> {
     use rustix::fs::{flock, fstat, open, stat, FileType, FlockOperation, Mode, OFlags};
+    let not_regular = || {
+        format!(
+            "cannot create {}: something not a regular file is there",
+            path.display()
+        )
+    };
     let named = |e: rustix::io::Errno| {
         let e = io::Error::from(e);
         // A FIFO with no reader fails the open itself (ENXIO): say what
         // is in the way rather than the errno's words.
         if std::fs::symlink_metadata(path).is_ok_and(|m| !m.is_file()) {
-            return io::Error::new(
-                e.kind(),
-                format!(
-                    "cannot create {}: something not a regular file is there",
-                    path.display()
-                ),
-            );
+            return io::Error::new(e.kind(), not_regular());
         }
         io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
     };
@@ -204,10 +202,7 @@ pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Loc
         .map_err(named)?;
         let meta = fstat(&fd).map_err(named)?;
         if FileType::from_raw_mode(meta.st_mode) != FileType::RegularFile {
-            return Err(io::Error::other(format!(
-                "cannot create {}: something not a regular file is there",
-                path.display()
-            )));
+            return Err(io::Error::other(not_regular()));
         }
         match flock(&fd, FlockOperation::NonBlockingLockExclusive) {
             Ok(()) => {
