@@ -115,6 +115,8 @@ impl core::fmt::Display for StateError {
 pub struct StateFile {
     path: PathBuf,
     tmp: PathBuf,
+    /// `PATH.stature-lock`, kept: a reader retries it at every write
+    /// ([`StateFile::take_over`]), which must not allocate.
     lock_path: PathBuf,
     dir: PathBuf,
     buf: Vec<u8>,
