@@ -303,8 +303,7 @@ impl Sink {
         Ok(match spec {
             SinkSpec::Stdout => Sink::Stdout(io::stdout()),
             SinkSpec::File(p) => Sink::File(FileSink {
-                file: open_report_file(p)
-                    .map_err(|e| io::Error::new(e.kind(), format!("report file `{p}`: {e}")))?,
+                file: open_report_file(p).map_err(|e| file_error(p, e))?,
                 path: p.clone(),
                 torn: false,
             }),
@@ -340,12 +339,7 @@ impl Sink {
                 let port = serialport::new(path, *baud)
                     .timeout(SERIAL_TIMEOUT)
                     .open()
-                    .map_err(|e| {
-                        io::Error::new(
-                            io::ErrorKind::NotFound,
-                            format!("serial port `{path}`: {e}"),
-                        )
-                    })?;
+                    .map_err(|e| serial_error(path, e))?;
                 Sink::Serial(SerialSink {
                     port,
                     path: path.clone(),
@@ -464,6 +458,19 @@ impl Sink {
     }
 }
 
+/// A `file:` sink's failure to open, naming the file.
+fn file_error(path: &str, e: io::Error) -> io::Error {
+    io::Error::new(e.kind(), format!("report file `{path}`: {e}"))
+}
+
+/// A `serial:` sink's failure to open, naming the port.
+fn serial_error(path: &str, e: impl std::fmt::Display) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::NotFound,
+        format!("serial port `{path}`: {e}"),
+    )
+}
+
 /// What can be known of a `file:` or `serial:` sink without opening it
 /// for good (`config --check`): opening would create the file, or toggle
 /// a serial port's modem lines and reset the board on the other end. The
@@ -479,7 +486,7 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
     use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
     match spec {
         SinkSpec::File(p) => {
-            let named = |e: io::Error| io::Error::new(e.kind(), format!("report file `{p}`: {e}"));
+            let named = |e: io::Error| file_error(p, e);
             // Where a write lands: the end of a chain of links (a
             // dangling link's write creates its target).
             let (target, meta) = crate::replace::follow_links(p.as_ref()).map_err(named)?;
@@ -503,12 +510,7 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
             }
         }
         SinkSpec::Serial { path, .. } => {
-            let named = |e: io::Error| {
-                io::Error::new(
-                    io::ErrorKind::NotFound,
-                    format!("serial port `{path}`: {e}"),
-                )
-            };
+            let named = |e: io::Error| serial_error(path, e);
             use std::os::unix::fs::MetadataExt;
             let m = std::fs::metadata(path).map_err(named)?;
             if !m.file_type().is_char_device() {
