@@ -1,6 +1,7 @@
 //! Files the product replaces whole (the calibration state, the installer
-//! snapshot, the trained weights and their report): written to `PATH.stature-tmp` beside the target and renamed
-//! over it, so that a reader or a power cut sees the old file or the new
+//! snapshot, the trained weights and their report): written to
+//! `PATH.stature-tmp` (or, while another process writes that one,
+//! `PATH.stature-tmp.PID`) beside the target and renamed over it, so that a reader or a power cut sees the old file or the new
 //! one. The suffix is the product's own: `PATH.tmp` may be someone's file
 //! (`--state notes` must not truncate `notes.tmp`).
 //!
@@ -224,30 +225,37 @@ pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Loc
 }
 
 /// Checks now, before any work whose result goes to `path`, that the file
-/// can be replaced later: [`target`] is resolved and `PATH.stature-tmp` is
-/// created and removed beside it (a missing or read-only directory, a full
-/// inode table). Returns the target. The error names the path that failed.
+/// can be replaced later: [`target`] is resolved and a temporary file of
+/// this process's own ([`create_own_tmp`]) is created and removed beside
+/// it (a missing or read-only directory, a full inode table). Returns the
+/// target. The error names the path that failed. A temporary file another
+/// process is writing (a service's snapshot or state, another training's
+/// weights) is neither emptied nor removed: that process's rename would
+/// put a torn file in place, or fail.
 pub fn probe(path: &Path) -> io::Result<PathBuf> {
     let target = target(path)?;
     if target.file_name().is_none() {
         return Err(io::Error::other("not a file name"));
     }
-    let tmp = tmp_beside(&target);
-    std::fs::File::create(&tmp)
-        .map_err(|e| io::Error::new(e.kind(), format!("cannot create {}: {e}", tmp.display())))?;
+    let (tmp, file) = create_own_tmp(&target)?;
+    // Removed while still locked, as every writer of these names does.
     let _ = std::fs::remove_file(&tmp);
+    drop(file);
     Ok(target)
 }
 
-/// The new content of a file, written and synced to `PATH.stature-tmp`
-/// but not yet in place: [`Staged::commit`] renames it over the path.
-/// Staging every output of a command first means a failure writing one
-/// leaves all of them as they were. Dropped uncommitted, the temporary
-/// file is removed.
+/// The new content of a file, written and synced to a temporary file of
+/// this process's own beside it ([`create_own_tmp`]) but not yet in place:
+/// [`Staged::commit`] renames it over the path. Staging every output of a
+/// command first means a failure writing one leaves all of them as they
+/// were. Dropped uncommitted, the temporary file is removed.
 #[derive(Debug)]
 pub struct Staged {
     path: PathBuf,
     tmp: PathBuf,
+    /// The temporary file, open so that its lock lasts until the rename
+    /// (or the removal): another writer of the path takes another name.
+    file: Option<std::fs::File>,
     committed: bool,
 }
 
@@ -256,14 +264,17 @@ impl Staged {
     pub fn write(path: &Path, bytes: &[u8]) -> io::Result<Staged> {
         use std::io::Write;
         let path = target(path)?;
-        let staged = Staged {
-            tmp: tmp_beside(&path),
+        let (tmp, file) = create_own_tmp(&path)?;
+        let mut staged = Staged {
+            tmp,
             path,
+            file: Some(file),
             committed: false,
         };
-        let mut f = std::fs::File::create(&staged.tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
+        if let Some(f) = staged.file.as_mut() {
+            f.write_all(bytes)?;
+            f.sync_all()?;
+        }
         Ok(staged)
     }
 
@@ -277,9 +288,12 @@ impl Staged {
 
 impl Drop for Staged {
     fn drop(&mut self) {
+        // Removed before the file (and its lock) is closed, so that no
+        // other writer takes the name up in between.
         if !self.committed {
             let _ = std::fs::remove_file(&self.tmp);
         }
+        drop(self.file.take());
     }
 }
 
@@ -375,6 +389,27 @@ mod tests {
         Staged::write(&f, b"new").unwrap().commit().unwrap();
         assert_eq!(std::fs::read(&f).unwrap(), b"new");
         assert!(!tmp_beside(&f).exists());
+    }
+
+    #[test]
+    fn two_writers_of_one_path_each_commit_a_whole_file() {
+        let d = scratch("staged-two");
+        let f = d.join("w.bin");
+        let first = Staged::write(&f, &[1u8; 4096]).unwrap();
+        // Another training's start-up check, then its write, meanwhile
+        // (one process here: the second name is this PID's).
+        assert_eq!(probe(&f).unwrap(), f);
+        let second = Staged::write(&f, &[2u8; 100]).unwrap();
+        first.commit().unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), [1u8; 4096]);
+        second.commit().unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), [2u8; 100]);
+        let left: Vec<_> = std::fs::read_dir(&*d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n != "w.bin")
+            .collect();
+        assert!(left.is_empty(), "temporary files left: {left:?}");
     }
 
     #[test]
