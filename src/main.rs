@@ -313,8 +313,9 @@ struct ConfigArgs {
     print_defaults: bool,
     /// Check a configuration file and report the first problem, including
     /// what `run` would refuse at start-up (the state and snapshot paths,
-    /// report files, serial ports, a UDP host, an MQTT CA file), as the
-    /// user who runs the check.
+    /// report files, serial ports, a UDP host, an MQTT CA file, a Y4M
+    /// file's header, the memory for the frame size), as the user who runs
+    /// the check.
     #[arg(long)]
     check: Option<PathBuf>,
     /// With --check: the keys and values only, not the start-up checks (for
@@ -362,13 +363,30 @@ fn config_cmd(a: ConfigArgs) -> i32 {
     let checked = if a.keys_only {
         Ok(())
     } else {
-        check_run_paths(&cfg).and_then(|_files| check_sinks(&cfg))
+        check_run_paths(&cfg)
+            .and_then(|_files| check_sinks(&cfg))
+            .and_then(|()| check_source_memory(&cfg))
     };
     if let Err(r) = checked {
         say!("error: {}: {}", path.display(), r.message);
         return r.code;
     }
     print_out(&format!("{}: ok\n", path.display())).map_or_else(|code| code, |()| exit::OK)
+}
+
+/// `config --check`'s part of what `run` checks once its source is open:
+/// a Y4M file's header, and whether the frames fit the memory (at the size
+/// a scene has, a `v4l2:` URI asks for or a Y4M file's header gives; a
+/// pipe or device is not read, a camera not taken from a running service).
+fn check_source_memory(cfg: &Config) -> Result<(), Refused> {
+    match source::planned_size(&cfg.source.uri) {
+        Ok(Some(size)) => check_memory(cfg, size),
+        Ok(None) => Ok(()),
+        Err(e) => Err(Refused {
+            message: format!("source.uri: {e}"),
+            code: e.exit_code(),
+        }),
+    }
 }
 
 /// Writes what a command prints to standard output. A write that fails (a
@@ -430,6 +448,26 @@ fn check_run_paths(cfg: &Config) -> Result<RunFiles, Refused> {
         files.snapshot = Some(snapshot);
     }
     Ok(files)
+}
+
+/// Whether the pipeline for `size` frames fits the memory the system (or
+/// the service's cgroup) has room for; unknown room passes.
+fn check_memory(cfg: &Config, size: stature::frame::Size) -> Result<(), Refused> {
+    let need = run::memory_estimate(cfg, size);
+    match run::memory_room() {
+        Some(free) if need > free => Err(Refused {
+            message: format!(
+                "{}x{} frames need about {} MiB for the pipeline; {} MiB of memory is available \
+                 (system or service limit; capture a smaller size)",
+                size.width,
+                size.height,
+                need >> 20,
+                free >> 20
+            ),
+            code: exit::UNAVAILABLE,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// What `config --check` can know of the sinks without sending anything,
@@ -641,19 +679,9 @@ fn run_source(
     let info = src.info().clone();
     // A frame size the board cannot hold is refused now, not by the OOM
     // killer later (which may pick another process).
-    let need = run::memory_estimate(cfg, info.size);
-    if let Some(free) = run::memory_room() {
-        if need > free {
-            log::error!(
-                "{}x{} frames need about {} MiB for the pipeline; {} MiB of memory is available \
-                 (system or service limit; capture a smaller size)",
-                info.size.width,
-                info.size.height,
-                need >> 20,
-                free >> 20
-            );
-            return exit::UNAVAILABLE;
-        }
+    if let Err(r) = check_memory(cfg, info.size) {
+        log::error!("{}", r.message);
+        return r.code;
     }
     // The state and snapshot paths are checked before anything else starts.
     let (state, mut snapshot) = match check_run_paths(cfg) {

@@ -213,6 +213,31 @@ pub fn check(uri: &str) -> Result<(), SourceError> {
     }
 }
 
+/// The frame size a run of `uri` will get, as far as it is known without
+/// taking the source from anyone (for `stature config --check`'s memory
+/// check): a scene's size, the size a `v4l2:` URI asks for (the driver may
+/// give another; `run` checks what it got), a Y4M file's header (read, so
+/// a missing file or a bad header fails as `run` would). `None` for
+/// standard input and for a FIFO or device at a `y4m:` path: reading
+/// would take frames from whoever feeds it.
+pub fn planned_size(uri: &str) -> Result<Option<Size>, SourceError> {
+    Ok(match parse(uri)? {
+        Spec::Sim(scene, _) => Some(Size {
+            width: scene.width,
+            height: scene.height,
+        }),
+        Spec::V4l2(spec) => Some(Size {
+            width: spec.width as usize,
+            height: spec.height as usize,
+        }),
+        Spec::Y4m("-") => None,
+        Spec::Y4m(path) => match std::fs::metadata(path) {
+            Ok(m) if !m.is_file() && !m.is_dir() => None,
+            _ => Some(y4m::Y4mSource::open(path)?.info().size),
+        },
+    })
+}
+
 /// Opens a source URI (`y4m:PATH`, `v4l2:/dev/videoN?...`, `sim:SCENE?...`).
 pub fn open(uri: &str) -> Result<Box<dyn FrameSource + Send>, SourceError> {
     open_stoppable(uri, None)
@@ -231,4 +256,31 @@ pub fn open_stoppable(
         Spec::V4l2(spec) => Box::new(v4l2::V4l2Source::from_spec(spec)?),
         Spec::Sim(scene, opts) => Box::new(sim::SimSource::new(scene, &opts)),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn planned_sizes_come_from_the_uri_without_opening_a_device() {
+        let size = |uri| planned_size(uri).unwrap();
+        assert_eq!(
+            size("sim:busy?seed=3"),
+            Some(Size {
+                width: 1280,
+                height: 720
+            })
+        );
+        // No such device here: the size asked for is known all the same.
+        assert_eq!(
+            size("v4l2:/dev/video97?width=1920&height=1080&fps=10&format=YUYV"),
+            Some(Size {
+                width: 1920,
+                height: 1080
+            })
+        );
+        assert_eq!(size("y4m:-"), None);
+        assert!(planned_size("y4m:/nonexistent/a.y4m").is_err());
+    }
 }

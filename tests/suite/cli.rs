@@ -1465,6 +1465,59 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
     assert_eq!(std::fs::read(&existing).unwrap(), b"{}\n");
 }
 
+/// `config --check` reads a Y4M source's header as `run` does (the frame
+/// size is what its memory check needs), with `run`'s exit codes and
+/// words; a FIFO at the path is not read (its frames are the feeder's).
+/// Before: both configs passed the check, and `run` then stopped.
+#[test]
+fn config_check_reads_a_y4m_sources_header_as_run_does() {
+    let dir = common::fresh_dir("cli-config_check_reads_a_y4m_sources_header");
+    let bad = dir.join("bad.y4m");
+    std::fs::write(&bad, b"YUV4MPEG W64 H48 F25:1\n").unwrap();
+    let cases = [
+        (dir.join("missing.y4m"), 3, "cannot open Y4M file"),
+        (bad, 2, "missing YUV4MPEG2 signature"),
+    ];
+    for (i, (clip, code, want)) in cases.iter().enumerate() {
+        let cfg = dir.join(format!("{i}.toml"));
+        std::fs::write(
+            &cfg,
+            format!("[source]\nuri = \"y4m:{}\"\n", clip.display()),
+        )
+        .unwrap();
+        let cfg = cfg.display().to_string();
+        for args in [
+            &["config", "--check", &cfg][..],
+            &["run", "--config", &cfg, "--frames", "1"],
+        ] {
+            let o = run(args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(*code), "{args:?}: {err}");
+            assert!(err.contains(want), "{args:?}: {err}");
+        }
+        let keys = run(&["config", "--check", &cfg, "--keys-only"]);
+        assert_eq!(keys.status.code(), Some(0));
+    }
+    let good = write_clip(&dir, "good.y4m", 2);
+    let fifo = dir.join("feed.y4m");
+    common::mkfifo(&fifo);
+    for clip in [good, fifo.clone()] {
+        let cfg = dir.join("ok.toml");
+        std::fs::write(
+            &cfg,
+            format!("[source]\nuri = \"y4m:{}\"\n", clip.display()),
+        )
+        .unwrap();
+        // A writer stands by: a check that opened the FIFO would read
+        // an empty stream (exit 2) instead of hanging.
+        let o = common::with_fifo_writer(&fifo, || {
+            run(&["config", "--check", &cfg.display().to_string()])
+        });
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(0), "{}: {err}", clip.display());
+    }
+}
+
 /// An MQTT `ca=` path naming a FIFO is refused at start-up, by `run` and
 /// by `config --check` alike. Before, both blocked in open(2) waiting for
 /// a writer, and only kill -9 ended them.
