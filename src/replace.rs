@@ -329,8 +329,14 @@ impl core::fmt::Display for ReadError {
 /// as `/dev/zero` or a huge file costs one read of `cap + 1` bytes instead
 /// of all the memory there is.
 pub fn read_capped(path: &Path, cap: u64) -> Result<Vec<u8>, ReadError> {
-    use std::io::Read;
     let f = std::fs::File::open(path).map_err(ReadError::Io)?;
+    read_capped_from(f, cap)
+}
+
+/// [`read_capped`] of a file already open (checked after the open, so
+/// that what is read is what was checked).
+pub fn read_capped_from(f: std::fs::File, cap: u64) -> Result<Vec<u8>, ReadError> {
+    use std::io::Read;
     let mut bytes = Vec::new();
     f.take(cap + 1)
         .read_to_end(&mut bytes)

@@ -530,40 +530,56 @@ pub const MAX_CA_BYTES: u64 = 1 << 20;
 /// The certificates of the `ca=` file `ca`. Only a regular file (after
 /// symbolic links) is read: opening a FIFO blocks until something writes
 /// to it, where no signal ends the wait, and a device such as `/dev/zero`
-/// never ends; both are refused before the open.
+/// never ends; both are refused before the open, and again after it (on
+/// the file opened, without waiting: a FIFO swapped in between is
+/// refused, not waited on).
 fn ca_certificates(ca: &str) -> io::Result<Vec<rustls::pki_types::CertificateDer<'static>>> {
     use rustls::pki_types::{pem::PemObject, CertificateDer};
-    use std::os::unix::fs::FileTypeExt;
+    use std::os::unix::fs::OpenOptionsExt;
     let bad = |msg: &dyn std::fmt::Display| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
             format!("MQTT CA file `{ca}`: {msg}"),
         )
     };
-    let kind = std::fs::metadata(ca).map_err(|e| bad(&e))?.file_type();
-    if !kind.is_file() {
-        let what = if kind.is_dir() {
-            "a directory"
-        } else if kind.is_fifo() {
-            "a FIFO"
-        } else if kind.is_char_device() {
-            "a character device"
-        } else if kind.is_block_device() {
-            "a block device"
-        } else if kind.is_socket() {
-            "a socket"
-        } else {
-            "something else"
-        };
-        return Err(bad(&format!(
-            "not a regular file ({what}): give a PEM file with the broker's CA certificate(s)"
-        )));
-    }
-    let bytes =
-        crate::replace::read_capped(std::path::Path::new(ca), MAX_CA_BYTES).map_err(|e| bad(&e))?;
+    let regular = |kind: std::fs::FileType| {
+        if kind.is_file() {
+            return Ok(());
+        }
+        Err(bad(&format!(
+            "not a regular file ({}): give a PEM file with the broker's CA certificate(s)",
+            kind_name(kind)
+        )))
+    };
+    regular(std::fs::metadata(ca).map_err(|e| bad(&e))?.file_type())?;
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(rustix::fs::OFlags::NONBLOCK.bits() as i32)
+        .open(ca)
+        .map_err(|e| bad(&e))?;
+    regular(f.metadata().map_err(|e| bad(&e))?.file_type())?;
+    let bytes = crate::replace::read_capped_from(f, MAX_CA_BYTES).map_err(|e| bad(&e))?;
     CertificateDer::pem_slice_iter(&bytes)
         .map(|c| c.map(CertificateDer::into_owned).map_err(|e| bad(&e)))
         .collect()
+}
+
+/// What a file that is not a regular one is, in words.
+fn kind_name(kind: std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_dir() {
+        "a directory"
+    } else if kind.is_fifo() {
+        "a FIFO"
+    } else if kind.is_char_device() {
+        "a character device"
+    } else if kind.is_block_device() {
+        "a block device"
+    } else if kind.is_socket() {
+        "a socket"
+    } else {
+        "something else"
+    }
 }
 
 /// A rustls client configuration with the ring provider, trusting `ca`
