@@ -701,9 +701,10 @@ fn pets(toml: &str) {
     let e = r.abs_errors(); // sorted
     match &r.calibration {
         Some(c) => println!(
-            "== pets: f {:.0} / {:.0} px, tilt {:.2} / {:.2}, roll {:.2} / {:.2}, camera {:.2} / {:.2} m; {} heights matched ({} not), |err| median {:.3} p90 {:.3} m",
+            "== pets: f {:.0} / {:.0} px, tilt {:.2} / {:.2}, roll {:.2} / {:.2}, camera {:.2} / {:.2} m; {} heights matched ({} people, {} repeats), {} of people without a true height, {} of no one; |err| median {:.3} p90 {:.3} m",
             c.f_px, t.focal_px, c.tilt_deg, t.tilt_deg, c.roll_deg, t.roll_deg,
-            c.camera_height_m, t.camera_height_m, r.heights.len(), r.unmatched,
+            c.camera_height_m, t.camera_height_m, r.heights.len(),
+            r.heights.len() - r.repeated(), r.repeated(), r.no_truth, r.unmatched,
             e.get(e.len() / 2).copied().unwrap_or(f64::NAN),
             e.get(e.len() * 9 / 10).copied().unwrap_or(f64::NAN),
         ),

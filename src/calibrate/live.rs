@@ -330,8 +330,22 @@ pub struct PetsRun {
     /// Each final height matched to a ground-truth person: (record,
     /// person id, the person's calibration-derived height).
     pub heights: Vec<(Height, u32, f64)>,
-    /// Final height records that matched no ground-truth box.
+    /// Final height records of tracks that followed no ground-truth
+    /// person (false people).
     pub unmatched: usize,
+    /// Final height records of a person without a calibration-derived
+    /// height in `geometry.json`.
+    pub no_truth: usize,
+}
+
+impl PetsRun {
+    /// Final height records beyond the first of each person (a person
+    /// whose track broke up is reported more than once).
+    pub fn repeated(&self) -> usize {
+        let people: std::collections::BTreeSet<u32> =
+            self.heights.iter().map(|(_, id, _)| *id).collect();
+        self.heights.len() - people.len()
+    }
 }
 
 impl PetsRun {
@@ -350,8 +364,9 @@ impl PetsRun {
 
 /// Runs the pipeline with `cfg` over the PETS 2009 S2.L1 clip in
 /// `data_dir` (decoded by ffmpeg) and matches every final height to the
-/// ground-truth person whose box bottom centre is nearest its foot point
-/// (within a fifth of the box height) in the frame it was last seen.
+/// ground-truth person most of its track's head/foot samples fell on (the
+/// box whose bottom centre is nearest the foot point, within a fifth of
+/// the box height).
 pub fn run_pets(data_dir: &std::path::Path, cfg: &Config) -> Result<PetsRun, String> {
     use crate::source::Next;
     let truth = crate::dataset::load_pets_geometry(data_dir)?;
@@ -362,9 +377,20 @@ pub fn run_pets(data_dir: &std::path::Path, cfg: &Config) -> Result<PetsRun, Str
     let mut p = Pipeline::new(cfg, &info);
     let (mut reporter, rx, _) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
     let drain = std::thread::spawn(move || rx.iter().count());
+    // Per track, the ground-truth people its head/foot samples fell on.
+    let mut votes: BTreeMap<u32, BTreeMap<u32, usize>> = BTreeMap::new();
     loop {
         match src.next_frame(&mut p.frame).map_err(|e| e.to_string())? {
-            Next::Frame => p.process(&mut reporter),
+            Next::Frame => {
+                p.process(&mut reporter);
+                let frame = (p.frames - 1) as u32;
+                for t in p.tracker().tracks() {
+                    let person = t.fresh.and_then(|hf| pets_person_at(&gt, frame, hf.foot));
+                    if let Some(id) = person {
+                        *votes.entry(t.id).or_default().entry(id).or_default() += 1;
+                    }
+                }
+            }
             Next::Waiting => continue,
             Next::End => break,
         }
@@ -372,23 +398,20 @@ pub fn run_pets(data_dir: &std::path::Path, cfg: &Config) -> Result<PetsRun, Str
     p.finish(&mut reporter);
     drop(reporter);
     drain.join().map_err(|_| "report drain thread panicked")?;
-    let (mut heights, mut unmatched) = (Vec::new(), 0);
+    let (mut heights, mut unmatched, mut no_truth) = (Vec::new(), 0, 0);
     for h in std::mem::take(&mut p.final_heights) {
-        let foot = h.foot_px.map(f64::from);
-        let best = crate::dataset::boxes_of_frame(&gt, h.frame as u32)
-            .iter()
-            .map(|b| {
-                let bx = 0.5 * f64::from(b.x0 + b.x1);
-                let d = ((bx - foot[0]).powi(2) + (f64::from(b.y1) - foot[1]).powi(2)).sqrt();
-                (d / f64::from(b.y1 - b.y0 + 1), b.id)
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        match best {
-            Some((v, id)) if v <= 0.2 => match persons.get(&id) {
+        // The person most of the track's samples were on; a track that
+        // gave no sample on anyone, by where it was last seen.
+        let person = votes
+            .get(&h.track_id)
+            .and_then(|v| v.iter().max_by_key(|(_, &n)| n).map(|(&id, _)| id))
+            .or_else(|| pets_person_at(&gt, h.frame as u32, h.foot_px.map(f64::from)));
+        match person {
+            Some(id) => match persons.get(&id) {
                 Some(&t) => heights.push((h, id, t)),
-                None => unmatched += 1,
+                None => no_truth += 1,
             },
-            _ => unmatched += 1,
+            None => unmatched += 1,
         }
     }
     Ok(PetsRun {
@@ -396,7 +419,23 @@ pub fn run_pets(data_dir: &std::path::Path, cfg: &Config) -> Result<PetsRun, Str
         calibration: p.calibration.take(),
         heights,
         unmatched,
+        no_truth,
     })
+}
+
+/// The ground-truth person of PETS frame `frame` whose box's bottom
+/// centre is nearest `foot`, within a fifth of that box's height.
+fn pets_person_at(gt: &[crate::dataset::GtBox], frame: u32, foot: [f64; 2]) -> Option<u32> {
+    crate::dataset::boxes_of_frame(gt, frame)
+        .iter()
+        .map(|b| {
+            let bx = 0.5 * f64::from(b.x0 + b.x1);
+            let d = ((bx - foot[0]).powi(2) + (f64::from(b.y1) - foot[1]).powi(2)).sqrt();
+            (d / f64::from(b.y1 - b.y0 + 1), b.id)
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .filter(|&(v, _)| v <= 0.2)
+        .map(|(_, id)| id)
 }
 
 /// Each ground-truth person's height from the real calibration

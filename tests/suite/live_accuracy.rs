@@ -119,7 +119,7 @@ fn pets_calibrates_against_its_real_calibration() {
     let t = r.truth;
     let errors = r.abs_errors();
     println!(
-        "PETS: f {} / {} px, tilt {} / {}, roll {} / {}, camera {} / {} m, {} heights matched ({} not), |err| {:?}",
+        "PETS: f {} / {} px, tilt {} / {}, roll {} / {}, camera {} / {} m, {} heights matched ({} repeats; {} of people without a true height, {} of no one), |err| {:?}",
         c.f_px,
         t.focal_px,
         c.tilt_deg,
@@ -129,6 +129,8 @@ fn pets_calibrates_against_its_real_calibration() {
         c.camera_height_m,
         t.camera_height_m,
         r.heights.len(),
+        r.repeated(),
+        r.no_truth,
         r.unmatched,
         errors
     );
@@ -140,6 +142,11 @@ fn pets_calibrates_against_its_real_calibration() {
     // Default scale mode: the 1.70 m prior against people around 1.77 m.
     assert!((f64::from(c.camera_height_m) / t.camera_height_m - 1.0).abs() <= 0.15);
     assert!(r.heights.len() >= 8, "{} heights", r.heights.len());
+    // Measured 19 of the clip's 19 people, and 2 heights of no one (of
+    // 44): a person is measured, and few heights belong to nobody.
+    let people = r.heights.len() - r.repeated();
+    assert!(people >= 14, "{people} people measured");
+    assert!(r.unmatched <= 5, "{} heights of no one", r.unmatched);
     let median = errors[errors.len() / 2];
     assert!(median <= 0.12, "median height error {median} m");
 }
