@@ -407,7 +407,11 @@ impl Config {
     /// The state file, the snapshot and the `file:` sinks must be different
     /// files: the state loader would call a record stream corrupt and set
     /// it aside, and two files replaced through one `PATH.stature-tmp`
-    /// overwrite each other.
+    /// overwrite each other. None of them may be a file the run reads (the
+    /// Y4M source, the weights): the state would set the video aside and
+    /// take its place, a report sink would append records to it. A `file:`
+    /// sink is not the file standard output already writes to when a
+    /// `stdout` sink is there too (every record twice, interleaved).
     fn check_outputs_apart(
         &self,
         specs: &[crate::report::sink::SinkSpec],
@@ -425,9 +429,9 @@ impl Config {
                 outputs.push(("report.sinks", path));
             }
         }
-        let resolved: Vec<String> = outputs.iter().map(|(_, p)| resolved_path(p)).collect();
-        for (i, r) in resolved.iter().enumerate() {
-            if let Some(j) = resolved[..i].iter().position(|e| e == r) {
+        let ids: Vec<FileId> = outputs.iter().map(|(_, p)| FileId::of_path(p)).collect();
+        for (i, id) in ids.iter().enumerate() {
+            if let Some(j) = ids[..i].iter().position(|e| e == id) {
                 let (key, value) = outputs[i];
                 let other = match outputs[j].0 {
                     "report.sinks" => "a report.sinks file",
@@ -443,7 +447,77 @@ impl Config {
                 ));
             }
         }
+        // (what the file is to the run, why it must not be an output, it)
+        let mut inputs: Vec<(String, &str, FileId)> = Vec::new();
+        let read = "the run would write over what it reads";
+        match crate::source::split_uri(&self.source.uri) {
+            Some(("y4m", "-", "")) => {
+                if let Some(id) = FileId::of_stdio(std::io::stdin()) {
+                    inputs.push(("the standard input source.uri reads".into(), read, id));
+                }
+            }
+            Some(("y4m", path, "")) => inputs.push((
+                format!("the source.uri Y4M file `{path}`"),
+                read,
+                FileId::of_path(path),
+            )),
+            _ => {}
+        }
+        if !self.classify.weights.is_empty() {
+            inputs.push((
+                format!("the classify.weights file `{}`", self.classify.weights),
+                read,
+                FileId::of_path(&self.classify.weights),
+            ));
+        }
+        if specs.iter().any(|s| matches!(s, SinkSpec::Stdout)) {
+            if let Some(id) = FileId::of_stdio(std::io::stdout()) {
+                let what = "the file standard output (a stdout sink) writes to".into();
+                inputs.push((what, "every record would be written to it twice", id));
+            }
+        }
+        for ((key, value), id) in outputs.iter().zip(&ids) {
+            if let Some((what, why, _)) = inputs.iter().find(|(_, _, i)| i == id) {
+                return Err(ConfigError::invalid(
+                    key,
+                    value,
+                    format!("the same file as {what} ({why})"),
+                ));
+            }
+        }
         Ok(())
+    }
+}
+
+/// What makes two paths one file: its device and inode when it exists
+/// (hard links, `/dev/stdout`), else where a write would create it.
+#[derive(PartialEq, Eq)]
+enum FileId {
+    Inode(u64, u64),
+    Path(String),
+}
+
+impl FileId {
+    fn of_path(path: &str) -> FileId {
+        match std::fs::metadata(path) {
+            Ok(m) => {
+                use std::os::unix::fs::MetadataExt;
+                FileId::Inode(m.dev(), m.ino())
+            }
+            Err(_) => FileId::Path(resolved_path(path)),
+        }
+    }
+
+    /// A standard stream's file, when it is a file or a pipe (a terminal
+    /// or `/dev/null` may be shared harmlessly).
+    fn of_stdio(fd: impl std::os::fd::AsFd) -> Option<FileId> {
+        use rustix::fs::FileType;
+        let st = rustix::fs::fstat(fd).ok()?;
+        matches!(
+            FileType::from_raw_mode(st.st_mode),
+            FileType::RegularFile | FileType::Fifo
+        )
+        .then(|| FileId::Inode(st.st_dev as u64, st.st_ino as u64))
     }
 }
 

@@ -1295,6 +1295,78 @@ fn run_outputs_are_refused_when_they_collide_or_cannot_be_named() {
     assert!(left.is_empty(), "nothing written: {left:?}");
 }
 
+/// Before: `--state` naming the source video set the video aside as a
+/// corrupt state and put the state in its place, a `file:` sink naming it
+/// appended records to it, and outputs that were one file under two names
+/// (a hard link; standard output redirected to a `file:` sink's file) got
+/// every record twice. Each is now refused before anything is written.
+#[test]
+fn run_outputs_are_refused_when_they_are_its_inputs_or_one_file_twice() {
+    let dir = common::fresh_dir("cli-run_outputs_are_inputs");
+    let clip = write_clip(&dir, "src.y4m", 3);
+    let video = std::fs::read(&clip).unwrap();
+    let src = format!("y4m:{}", clip.display());
+    let weights = dir.join("w.bin");
+    std::fs::copy(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("weights/classifier.bin"),
+        &weights,
+    )
+    .unwrap();
+    let (a, b) = (dir.join("a.jsonl"), dir.join("b.jsonl"));
+    std::fs::write(&a, b"").unwrap();
+    std::fs::hard_link(&a, &b).unwrap();
+    let file = |p: &std::path::Path| format!("file:{}", p.display());
+    let cases: [(Vec<String>, &str); 4] = [
+        (
+            vec!["--state".into(), clip.display().to_string()],
+            "--state",
+        ),
+        (
+            vec!["--report".into(), file(&clip)],
+            "the source.uri Y4M file",
+        ),
+        (
+            vec![
+                "--weights".into(),
+                weights.display().to_string(),
+                "--state".into(),
+                weights.display().to_string(),
+            ],
+            "the classify.weights file",
+        ),
+        (
+            vec!["--report".into(), file(&a), "--report".into(), file(&b)],
+            "the same file as a report.sinks file",
+        ),
+    ];
+    for (extra, want) in &cases {
+        let mut args = vec!["run", "--source", &src];
+        args.extend(extra.iter().map(String::as_str));
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains(want), "{extra:?}: {err}");
+    }
+    // Standard output redirected to the file a `file:` sink names, with a
+    // `stdout` sink too.
+    let out = std::fs::File::create(dir.join("out.jsonl")).unwrap();
+    let o = Command::new(stature_bin())
+        .args(["run", "--source", &src, "--report", "stdout", "--report"])
+        .arg(file(&dir.join("out.jsonl")))
+        .stdin(Stdio::null())
+        .stdout(out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("the file standard output"), "{err}");
+    assert_eq!(std::fs::read(&clip).unwrap(), video, "the video is intact");
+    assert_eq!(std::fs::read(&a).unwrap(), b"");
+    assert_eq!(std::fs::read(dir.join("out.jsonl")).unwrap(), b"");
+    let left = std::fs::read_dir(&*dir).unwrap().count();
+    assert_eq!(left, 5, "nothing else written");
+}
+
 /// With stderr on a full disk (or a closed pipe) every command still ends
 /// with its own exit code; `eprintln!` panicked (exit 101).
 #[test]
