@@ -133,6 +133,7 @@ impl MqttSink {
     /// for the broker: a camera may boot before it, and records are held
     /// until it answers. Fails only on local problems (an unreadable CA file).
     pub fn open(settings: MqttSettings) -> io::Result<MqttSink> {
+        settings.check_credentials()?;
         let mut opts = MqttOptions::new(
             settings.client_id.clone(),
             settings.host.clone(),
@@ -514,6 +515,7 @@ fn hint(e: &ConnectionError) -> &'static str {
 /// broker: the TLS roots (the `ca=` file, or the system's). What `stature
 /// config --check` asks of an `mqtt:` sink without connecting.
 pub fn check_local(settings: &MqttSettings) -> io::Result<()> {
+    settings.check_credentials()?;
     if settings.tls {
         tls_config(&settings.ca)?;
     }

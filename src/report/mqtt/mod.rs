@@ -390,6 +390,10 @@ pub struct MqttSettings {
     pub ha_prefix: String,
     /// User name and password, if any.
     pub credentials: Option<(String, String)>,
+    /// A password was given (`STATURE_MQTT_PASSWORD`) with no user name
+    /// anywhere: MQTT cannot send it, and connecting without it would
+    /// hide the mistake ([`MqttSettings::check_credentials`]).
+    pub password_without_user: bool,
     /// Keep-alive, seconds.
     pub keep_alive_s: u32,
     /// Held records.
@@ -445,12 +449,26 @@ impl MqttSettings {
             ca: q.ca.clone().unwrap_or_else(|| cfg.ca.clone()),
             ha_discovery: q.ha_discovery.unwrap_or(cfg.ha_discovery),
             ha_prefix: cfg.ha_prefix.clone(),
+            password_without_user: user.is_empty() && !pass.is_empty(),
             credentials: (!user.is_empty()).then_some((user, pass)),
             keep_alive_s: cfg.keep_alive_s,
             buffer: cfg.buffer,
             reconnect_s: (cfg.reconnect_min_s, cfg.reconnect_max_s),
             shutdown_timeout_s: cfg.shutdown_timeout_s,
         }
+    }
+
+    /// Refuses a password without a user name (the config file's is
+    /// refused by [`MqttConfig::validate`]; this catches the environment's).
+    pub fn check_credentials(&self) -> std::io::Result<()> {
+        if self.password_without_user {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "MQTT password set (STATURE_MQTT_PASSWORD) without a user name \
+                 (STATURE_MQTT_USERNAME or [report.mqtt] username): MQTT sends no password without one",
+            ));
+        }
+        Ok(())
     }
 
     /// `HOST:PORT` for log lines.
@@ -747,6 +765,21 @@ mod tests {
         assert_eq!(d.port, 8883);
         assert!(d.topic.starts_with("stature/") && d.client_id.starts_with("stature-"));
         assert_eq!(d.credentials, None);
+        assert!(d.check_credentials().is_ok());
+        // A password from the environment with no user name anywhere is
+        // refused (before: dropped, and the client connected anonymously).
+        let e = MqttSettings::resolve(
+            &MqttSpec::parse("b").unwrap(),
+            &MqttConfig::default(),
+            |k| (k == "STATURE_MQTT_PASSWORD").then(|| "hunter2".to_string()),
+        );
+        let err = e.check_credentials().unwrap_err().to_string();
+        assert!(
+            err.contains("without a user name") && !err.contains("hunter2"),
+            "{err}"
+        );
+        assert!(crate::report::mqtt::link::check_local(&e).is_err());
+        assert!(s.check_credentials().is_ok());
     }
 
     #[test]
