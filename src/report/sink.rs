@@ -206,8 +206,9 @@ fn without_slashes(scheme: &str, after: &str) -> String {
 
 /// An open sink.
 pub enum Sink {
-    /// Standard output.
-    Stdout(io::Stdout),
+    /// Standard output (its descriptor, written like a report file: a
+    /// redirect to a file is one).
+    Stdout(FileSink),
     /// An appended file.
     File(FileSink),
     /// A connected-less UDP socket and its destination.
@@ -226,18 +227,124 @@ pub enum Sink {
 /// records it had already accepted, so losses could not be counted per
 /// record. Here every record that is not entirely in the file is an error
 /// the I/O thread counts.
+///
+/// A record is in a regular file whole or not at all: a write cut short (a
+/// full disk) is cut back off the file, so that a JSON Lines reader never
+/// meets half a record glued to the next one, in this run or the next
+/// run appending. Where that cannot be done (a pipe, a FIFO), the next
+/// record first closes the fragment (see [`write_after_fragment`]).
 pub struct FileSink {
     file: std::fs::File,
     /// The path, for logs.
     path: String,
     /// The last write failed part-way: the file may end in a fragment.
     torn: bool,
+    /// A pipe or FIFO (standard output into `| consumer`, a `file:` FIFO):
+    /// written only once it has room, else the record is not delivered.
+    pipe: bool,
+    /// Set while the pipe's reader is not reading.
+    stall: Stall,
 }
 
 impl FileSink {
-    fn write(&mut self, bytes: &[u8]) -> io::Result<()> {
-        write_after_fragment(&mut self.file, &mut self.torn, bytes)
+    /// `file`, opened to append; a regular file that ends inside a record
+    /// (a power cut, a kill during a write, an older build) has that
+    /// fragment closed before the first record.
+    fn new(file: std::fs::File, path: String) -> FileSink {
+        use std::os::unix::fs::FileTypeExt;
+        let torn = ends_inside_a_record(&file);
+        let pipe = file.metadata().is_ok_and(|m| m.file_type().is_fifo());
+        FileSink {
+            file,
+            path,
+            torn,
+            pipe,
+            stall: Stall::default(),
+        }
     }
+
+    fn write(&mut self, bytes: &[u8]) -> io::Result<()> {
+        if !self.pipe {
+            return self.write_now(bytes);
+        }
+        let mut stall = self.stall;
+        let written = stall.write(|| {
+            // Room for a record (POLLOUT: a free pipe buffer of a page, at
+            // least `MAX_RECORD`), so the write below does not block.
+            use rustix::event::{poll, PollFd, PollFlags, Timespec};
+            let mut fds = [PollFd::new(&self.file, PollFlags::OUT)];
+            let wait = Timespec {
+                tv_sec: 0,
+                tv_nsec: SERIAL_TIMEOUT.as_nanos() as _,
+            };
+            match poll(&mut fds, Some(&wait)) {
+                Ok(0) => Err(io::ErrorKind::TimedOut.into()),
+                // A reader gone shows as POLLERR; the write says EPIPE.
+                Ok(_) | Err(rustix::io::Errno::INTR) => self.write_now(bytes),
+                Err(e) => Err(e.into()),
+            }
+        });
+        self.stall = stall;
+        written
+    }
+
+    fn write_now(&mut self, bytes: &[u8]) -> io::Result<()> {
+        // The length before this record, when the file is a regular one.
+        let start = self
+            .file
+            .metadata()
+            .ok()
+            .filter(std::fs::Metadata::is_file)
+            .map(|m| m.len());
+        let file = &self.file;
+        let cut = start.map(|s| move || file.set_len(s));
+        write_whole(&mut &*file, &mut self.torn, bytes, cut)
+    }
+}
+
+/// [`write_after_fragment`], and when a failed record may have left a
+/// fragment and `cut` can put the output back to its length before the
+/// record (a regular file's `ftruncate`, which needs no free space), it
+/// does: nothing of the record is left, and a fragment from before is there
+/// as it was.
+fn write_whole<W: Write>(
+    w: &mut W,
+    torn: &mut bool,
+    bytes: &[u8],
+    cut: Option<impl FnOnce() -> io::Result<()>>,
+) -> io::Result<()> {
+    let was_torn = *torn;
+    let written = write_after_fragment(w, torn, bytes);
+    if written.is_err() && *torn && cut.is_some_and(|c| c().is_ok()) {
+        *torn = was_torn;
+    }
+    written
+}
+
+/// Whether a regular file's last byte is no record separator (`\n` after
+/// a JSON line, `0` after a COBS frame). Unknown (not readable, not a
+/// regular file): no.
+fn ends_inside_a_record(file: &std::fs::File) -> bool {
+    use std::os::unix::fs::FileExt;
+    let Some(len) = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len())
+    else {
+        return false;
+    };
+    if len == 0 {
+        return false;
+    }
+    // The sink's descriptor only appends; read through /proc/self/fd.
+    let mut last = [0u8; 1];
+    let read = std::fs::File::open(format!(
+        "/proc/self/fd/{}",
+        std::os::fd::AsRawFd::as_raw_fd(file)
+    ))
+    .and_then(|r| r.read_exact_at(&mut last, len - 1));
+    read.is_ok() && last[0] != b'\n' && last[0] != 0
 }
 
 /// A serial port, written one record per `write` call.
@@ -252,6 +359,60 @@ pub struct SerialSink {
     path: String,
     /// The last write failed part-way: the line may end in a fragment.
     torn: bool,
+    /// Set while the far end is not reading.
+    stall: Stall,
+}
+
+/// A byte stream that stopped taking records (a serial line whose far end
+/// stopped reading, a pipe nobody drains). Once a write has timed out,
+/// records fail at once, unwritten, until [`STALL_RETRY`] has passed; then
+/// one write tries again. One stream shares the I/O thread with every
+/// other sink: without this each record waited its full timeout (a
+/// serial port 200 ms, a full pipe for ever), so the other sinks fell
+/// behind, lost records once the queue filled, and the end of the run
+/// waited on it (89 records took 15 s, past the service's stop timeout).
+#[derive(Clone, Copy, Debug, Default)]
+struct Stall {
+    /// Until when records are failed unwritten.
+    until: Option<std::time::Instant>,
+}
+
+/// How long a stalled stream is left alone before the next try.
+const STALL_RETRY: Duration = Duration::from_secs(1);
+
+impl Stall {
+    /// Fails a record at once while the stream is left alone.
+    fn check(&self, now: std::time::Instant) -> io::Result<()> {
+        match self.until {
+            Some(t) if now < t => Err(io::ErrorKind::TimedOut.into()),
+            _ => Ok(()),
+        }
+    }
+
+    /// Takes note of a write's outcome: a timeout (or a full non-blocking
+    /// pipe) starts a pause, anything else ends it.
+    fn note(&mut self, now: std::time::Instant, written: &io::Result<()>) {
+        self.until = match written {
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock
+                ) =>
+            {
+                Some(now + STALL_RETRY)
+            }
+            _ => None,
+        };
+    }
+
+    /// `write`, unless the stream is left alone; `write` is then noted.
+    fn write(&mut self, write: impl FnOnce() -> io::Result<()>) -> io::Result<()> {
+        let now = std::time::Instant::now();
+        self.check(now)?;
+        let written = write();
+        self.note(std::time::Instant::now(), &written);
+        written
+    }
 }
 
 /// Writes one encoded record; `torn` says the previous write failed
@@ -285,7 +446,8 @@ fn write_after_fragment<W: Write>(w: &mut W, torn: &mut bool, bytes: &[u8]) -> i
     Ok(())
 }
 
-/// How long a serial write may block before the record is dropped.
+/// How long a serial write (or a wait for room in a pipe) may block
+/// before the record is dropped.
 const SERIAL_TIMEOUT: Duration = Duration::from_millis(200);
 
 impl Sink {
@@ -301,12 +463,18 @@ impl Sink {
     /// `STATURE_MQTT_PASSWORD` environment variables over both.
     pub fn open_with(spec: &SinkSpec, mqtt: &MqttConfig) -> io::Result<Sink> {
         Ok(match spec {
-            SinkSpec::Stdout => Sink::Stdout(io::stdout()),
-            SinkSpec::File(p) => Sink::File(FileSink {
-                file: open_report_file(p).map_err(|e| file_error(p, e))?,
-                path: p.clone(),
-                torn: false,
-            }),
+            SinkSpec::Stdout => {
+                use std::os::fd::AsFd;
+                let fd = io::stdout()
+                    .as_fd()
+                    .try_clone_to_owned()
+                    .map_err(|e| io::Error::new(e.kind(), format!("standard output: {e}")))?;
+                Sink::Stdout(FileSink::new(std::fs::File::from(fd), "stdout".into()))
+            }
+            SinkSpec::File(p) => Sink::File(FileSink::new(
+                open_report_file(p).map_err(|e| file_error(p, e))?,
+                p.clone(),
+            )),
             SinkSpec::Udp(addr) => {
                 let dest = addr
                     .to_socket_addrs()
@@ -344,6 +512,7 @@ impl Sink {
                     port,
                     path: path.clone(),
                     torn: false,
+                    stall: Stall::default(),
                 })
             }
             SinkSpec::Mqtt(m) => {
@@ -419,14 +588,12 @@ impl Sink {
     /// Writes one encoded record. An error means the record was not delivered.
     pub fn write_record(&mut self, bytes: &[u8]) -> io::Result<()> {
         match self {
-            Sink::Stdout(s) => {
-                let mut l = s.lock();
-                l.write_all(bytes)?;
-                l.flush()
-            }
-            Sink::File(f) => f.write(bytes),
+            Sink::Stdout(f) | Sink::File(f) => f.write(bytes),
             Sink::Udp(sock, dest) => sock.send_to(bytes, *dest).map(|_| ()),
-            Sink::Serial(s) => write_after_fragment(&mut s.port, &mut s.torn, bytes),
+            Sink::Serial(s) => {
+                let (port, torn) = (&mut s.port, &mut s.torn);
+                s.stall.write(|| write_after_fragment(port, torn, bytes))
+            }
             #[cfg(feature = "mqtt")]
             Sink::Mqtt(_) => Err(io::Error::new(
                 io::ErrorKind::InvalidInput,
@@ -642,6 +809,122 @@ mod tests {
     }
 
     use super::*;
+
+    /// A report file on a full file system: a record that does not fit is
+    /// cut back off (before: its first part stayed, and the next record,
+    /// of this run once space came back or of the next run appending, was
+    /// glued onto it, so a JSON Lines reader lost both).
+    #[test]
+    fn a_record_cut_by_a_full_disk_is_cut_back_off_a_file() {
+        let disk = std::cell::RefCell::new(FullDisk {
+            data: Vec::new(),
+            room: 40,
+        });
+        let rec = |n: u32| format!("{{\"type\":\"bye\",\"frame\":{n}}}\n");
+        let mut torn = false;
+        let mut write = |n: u32| {
+            let start = disk.borrow().data.len();
+            let cut = || {
+                disk.borrow_mut().data.truncate(start);
+                Ok(())
+            };
+            write_whole(&mut DiskRef(&disk), &mut torn, rec(n).as_bytes(), Some(cut))
+        };
+        write(1).unwrap();
+        assert!(write(2).is_err(), "record 2 does not fit");
+        assert!(write(3).is_err(), "nor does record 3");
+        disk.borrow_mut().room = 1000;
+        write(4).unwrap();
+        let text = String::from_utf8(disk.into_inner().data).unwrap();
+        assert_eq!(text, rec(1) + &rec(4));
+    }
+
+    /// A stream whose write timed out is left alone for `STALL_RETRY`
+    /// (records fail at once, unwritten), then tried again; a write that
+    /// goes through ends the pause, any other failure does not start one.
+    #[test]
+    fn a_stalled_stream_is_left_alone_then_tried_again() {
+        let t0 = std::time::Instant::now();
+        let ms = |n| t0 + Duration::from_millis(n);
+        let mut stall = Stall::default();
+        assert!(stall.check(t0).is_ok());
+        stall.note(ms(200), &Err(io::ErrorKind::TimedOut.into()));
+        for t in [200, 700, 1199] {
+            let e = stall.check(ms(t)).unwrap_err();
+            assert_eq!(e.kind(), io::ErrorKind::TimedOut, "{t} ms");
+        }
+        assert!(stall.check(ms(1200)).is_ok(), "tried again");
+        stall.note(ms(1200), &Ok(()));
+        assert!(stall.check(ms(1201)).is_ok());
+        // A full non-blocking FIFO is a stall; a reader gone is not.
+        stall.note(ms(1300), &Err(io::ErrorKind::WouldBlock.into()));
+        assert!(stall.check(ms(1400)).is_err());
+        stall.note(ms(2300), &Err(io::ErrorKind::BrokenPipe.into()));
+        assert!(stall.check(ms(2301)).is_ok());
+        // Through `write`: a pause skips the write itself.
+        let mut stall = Stall::default();
+        let mut tries = 0;
+        let mut timed_out = || {
+            tries += 1;
+            Err(io::ErrorKind::TimedOut.into())
+        };
+        assert!(stall.write(&mut timed_out).is_err());
+        assert!(stall.write(&mut timed_out).is_err());
+        assert_eq!(tries, 1, "the second record was not written");
+    }
+
+    /// Standard output into a pipe nobody reads: a record waits for room
+    /// at most `SERIAL_TIMEOUT`, then the pipe is left alone, so one
+    /// stalled reader cannot hold up the I/O thread (before: the write
+    /// blocked until the reader read, for ever).
+    #[test]
+    fn a_full_pipe_fails_records_instead_of_blocking() {
+        let (r, w) = rustix::pipe::pipe().unwrap();
+        let mut sink = FileSink::new(std::fs::File::from(w), "pipe".into());
+        assert!(sink.pipe);
+        let rec = [b'x'; 1000];
+        let mut failed = 0;
+        // 64 KiB of pipe: a few hundred records fill it many times over.
+        for _ in 0..300 {
+            if sink.write(&rec).is_err() {
+                failed += 1;
+            }
+        }
+        assert!(failed > 200, "{failed} of 300 records failed");
+        drop(r);
+    }
+
+    /// A file left ending inside a record (a power cut during a write, an
+    /// older build) has that fragment closed before the first record.
+    #[test]
+    fn a_report_file_ending_inside_a_record_is_closed_first() {
+        let dir = crate::scratch::fresh_dir("sink-fragment-at-open");
+        let path = dir.join("r.jsonl");
+        let rec = |n: u32| format!("{{\"type\":\"bye\",\"frame\":{n}}}\n");
+        for (before, torn) in [(rec(0) + "{\"type\":\"hel", true), (rec(0), false)] {
+            std::fs::write(&path, &before).unwrap();
+            let file = open_report_file(path.to_str().unwrap()).unwrap();
+            let mut sink = FileSink::new(file, "r".into());
+            assert_eq!(sink.torn, torn, "{before}");
+            sink.write(rec(1).as_bytes()).unwrap();
+            let text = std::fs::read_to_string(&path).unwrap();
+            let last = text.lines().last().unwrap();
+            assert_eq!(format!("{last}\n"), rec(1), "{text}");
+        }
+    }
+
+    /// `&RefCell<FullDisk>` as a writer (the test's cut-back needs the
+    /// disk while the write holds it).
+    struct DiskRef<'a>(&'a std::cell::RefCell<FullDisk>);
+
+    impl Write for DiskRef<'_> {
+        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+            self.0.borrow_mut().write(b)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
 
     #[test]
     fn specs_parse() {
