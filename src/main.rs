@@ -616,7 +616,17 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
         }
         Err(source::SourceError::Stopped) => {
             log::info!("stopped by a signal before the source had sent its first frame");
-            exit::OK
+            // A snapshot was asked for and there is none: a script's
+            // `stature snapshot ... && upload` must not go on.
+            if cfg.run.snapshot.is_empty() {
+                exit::OK
+            } else {
+                log::error!(
+                    "cannot write snapshot {}: no frame to draw (stopped before the first frame)",
+                    cfg.run.snapshot
+                );
+                exit::UNAVAILABLE
+            }
         }
         Err(e) => {
             log::error!("{e}");

@@ -578,9 +578,19 @@ fn signal_before_the_header_ends_cleanly() {
         .status()
         .unwrap()
         .success());
-    for uri in ["y4m:-".to_string(), format!("y4m:{}", fifo.display())] {
+    let png = dir.join("s.png").display().to_string();
+    let fifo_uri = format!("y4m:{}", fifo.display());
+    let runs: [(&[&str], i32); 3] = [
+        (&["run", "--source", "y4m:-"], 0),
+        (&["run", "--source", &fifo_uri], 0),
+        // A snapshot asked for and not made is an error (before: exit 0,
+        // and `stature snapshot ... && upload` went on without a picture).
+        (&["snapshot", "--source", &fifo_uri, "--out", &png], 3),
+    ];
+    for (args, code) in runs {
+        let uri = args.join(" ");
         let mut child = Command::new(stature_bin())
-            .args(["run", "--source", &uri])
+            .args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -603,8 +613,12 @@ fn signal_before_the_header_ends_cleanly() {
             .unwrap_or_else(|| panic!("{uri}: SIGTERM ignored while waiting for the header"));
         let mut rest = String::new();
         std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
-        assert!(status.success(), "{uri}: {status:?}: {rest}");
+        assert_eq!(status.code(), Some(code), "{uri}: {rest}");
         assert!(rest.contains("stopped by a signal before"), "{uri}: {rest}");
+        if code != 0 {
+            assert!(rest.contains("no frame to draw"), "{uri}: {rest}");
+            assert!(!std::path::Path::new(&png).exists());
+        }
         let mut out = Vec::new();
         std::io::Read::read_to_end(&mut child.stdout.take().unwrap(), &mut out).unwrap();
         assert!(out.is_empty(), "{uri}: {}", String::from_utf8_lossy(&out));
