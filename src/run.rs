@@ -643,9 +643,10 @@ pub fn memory_cgroup_dirs(proc_self_cgroup: &str) -> (Option<PathBuf>, Option<Pa
 }
 
 /// The memory this process can still take, in bytes: the system's
-/// `MemAvailable`, and under a cgroup limit (the service's `MemoryMax`,
-/// which the board profiles set; v2, or v1 on older images) the room left
-/// below it, whichever is less. `None` when neither can be read.
+/// `MemAvailable`, under a cgroup limit (the service's `MemoryMax`, which
+/// the board profiles set; v2, or v1 on older images) the room left below
+/// it, and under an address-space limit ([`vm_size`]) the room left below
+/// that, whichever is least. `None` when none can be read.
 pub fn memory_room() -> Option<u64> {
     let system = std::fs::read_to_string("/proc/meminfo")
         .ok()
@@ -670,10 +671,23 @@ pub fn memory_room() -> Option<u64> {
                     v1.and_then(|d| read(&d, files, "total_cache"))
                 })
         });
-    match (system, cgroup) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    }
+    let address_space = rustix::process::getrlimit(rustix::process::Resource::As)
+        .current
+        .and_then(|limit| {
+            let status = std::fs::read_to_string("/proc/self/status").ok()?;
+            Some(limit.saturating_sub(vm_size(&status)?))
+        });
+    [system, cgroup, address_space].into_iter().flatten().min()
+}
+
+/// `VmSize` of `/proc/self/status` in bytes (`text` is that file): the
+/// address space in use, which an `RLIMIT_AS` (`ulimit -v`, systemd's
+/// `LimitAS=`) bounds. Past that limit an allocation fails and the process
+/// aborts, so the room under it counts like the memory's.
+pub fn vm_size(text: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with("VmSize:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
 }
 
 /// Runs the loop until the source ends, fails, the frame limit, or a stop
@@ -854,6 +868,13 @@ mod tests {
         drop(p);
         // ...and let go with it.
         assert!(!StateFile::open(&path, 0).unwrap().in_use_elsewhere());
+    }
+
+    #[test]
+    fn vm_size_is_read_from_status() {
+        let text = "Name:\tstature\nVmPeak:\t  9000 kB\nVmSize:\t    3060 kB\nVmRSS:\t 1000 kB\n";
+        assert_eq!(vm_size(text), Some(3060 * 1024));
+        assert_eq!(vm_size("VmRSS: 1 kB\n"), None);
     }
 
     #[test]

@@ -1604,6 +1604,50 @@ fn config_check_reads_a_y4m_sources_header_as_run_does() {
     }
 }
 
+/// Under an address-space limit (`ulimit -v`, systemd's `LimitAS=`) a
+/// frame size that does not fit is refused with exit 3, by `run` and by
+/// `config --check`, as under a memory limit (before: the allocation
+/// failed and the process aborted, exit 134 and a backtrace). Not under
+/// qemu-user, which needs more address space of its own than the limit.
+#[test]
+fn an_address_space_limit_refuses_frames_that_do_not_fit() {
+    if std::env::var_os("QEMU_LD_PREFIX").is_some() {
+        eprintln!("skipped under qemu-user (the emulator's own mappings exceed the limit)");
+        return;
+    }
+    let dir = common::fresh_dir("cli-an_address_space_limit");
+    let clip = dir.join("huge.y4m");
+    // 16384x16384 needs about 4 GiB; 1 GiB of address space is plenty
+    // for everything else.
+    std::fs::write(&clip, b"YUV4MPEG2 W16384 H16384 F25:1 C420\n").unwrap();
+    let cfg = dir.join("c.toml");
+    std::fs::write(
+        &cfg,
+        format!("[source]\nuri = \"y4m:{}\"\n", clip.display()),
+    )
+    .unwrap();
+    for args in [
+        format!("run --config {}", cfg.display()),
+        format!("config --check {}", cfg.display()),
+    ] {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v 1048576 && exec {} {args}",
+                stature_bin()
+            ))
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(3), "{args}: {err}");
+        assert!(
+            err.contains("16384x16384 frames need about"),
+            "{args}: {err}"
+        );
+    }
+}
+
 /// An MQTT `ca=` path naming a FIFO is refused at start-up, by `run` and
 /// by `config --check` alike. Before, both blocked in open(2) waiting for
 /// a writer, and only kill -9 ended them.
