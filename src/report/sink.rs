@@ -123,6 +123,9 @@ impl SinkSpec {
                     ));
                 }
                 let mut baud = 115_200;
+                if let Some(k) = crate::source::repeated_key(query) {
+                    return Err(format!("`{k}` given twice in `{query}`"));
+                }
                 for (k, v) in crate::source::query_pairs(query) {
                     match (k, v.parse::<u32>()) {
                         ("baud", Ok(b)) if (300..=4_000_000).contains(&b) => baud = b,

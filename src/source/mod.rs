@@ -161,6 +161,17 @@ pub fn split_uri(uri: &str) -> Option<(&str, &str, &str)> {
     (!scheme.is_empty()).then_some((scheme, path, query))
 }
 
+/// The first key a query string gives twice (`seed=1&seed=2`): which one
+/// was meant is anyone's guess, so every parser refuses it rather than
+/// keep the last.
+pub fn repeated_key(query: &str) -> Option<&str> {
+    let keys = || query_pairs(query).map(|(k, _)| k);
+    keys()
+        .enumerate()
+        .find(|&(i, k)| keys().take(i).any(|e| e == k))
+        .map(|(_, k)| k)
+}
+
 /// Iterates `k=v` pairs of a query string.
 pub fn query_pairs(query: &str) -> impl Iterator<Item = (&str, &str)> {
     query
@@ -282,5 +293,24 @@ mod tests {
         );
         assert_eq!(size("y4m:-"), None);
         assert!(planned_size("y4m:/nonexistent/a.y4m").is_err());
+    }
+
+    /// Before: the last of two values won, silently.
+    #[test]
+    fn an_option_given_twice_is_refused_everywhere() {
+        assert_eq!(repeated_key("seed=1&frames=5&seed=2"), Some("seed"));
+        assert_eq!(repeated_key("seed=1&frames=5"), None);
+        let sim = check("sim:plaza?seed=1&seed=2").unwrap_err().to_string();
+        assert!(sim.contains("`seed` given twice"), "{sim}");
+        let cam = parse("v4l2:/dev/video0?width=640&width=320").err().unwrap();
+        assert!(cam.to_string().contains("`width` given twice"), "{cam}");
+        use crate::report::sink::SinkSpec;
+        let serial = SinkSpec::parse("serial:/dev/ttyS0?baud=9600&baud=115200").unwrap_err();
+        assert!(
+            serial.to_string().contains("`baud` given twice"),
+            "{serial}"
+        );
+        let mqtt = SinkSpec::parse("mqtt:b?qos=1&qos=0").unwrap_err();
+        assert!(mqtt.to_string().contains("`qos` given twice"), "{mqtt}");
     }
 }

@@ -253,8 +253,13 @@ impl MqttSpec {
         let bool_of = |k: &str, v: &str| match v {
             "true" | "1" | "yes" => Ok(true),
             "false" | "0" | "no" => Ok(false),
-            _ => Err(format!("`{k}={v}`: expected true or false")),
+            _ => Err(format!(
+                "`{k}={v}`: expected true or false (or 1/0, yes/no)"
+            )),
         };
+        if let Some(k) = crate::source::repeated_key(query) {
+            return Err(format!("`{k}` given twice in `{query}`"));
+        }
         for (k, v) in crate::source::query_pairs(query) {
             match k {
                 "topic" => {

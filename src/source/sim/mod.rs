@@ -93,6 +93,11 @@ impl SimOptions {
             "1" | "true" | "" => Ok(true),
             _ => Err(bad(k, v, "0 or 1")),
         };
+        if let Some(k) = super::repeated_key(query) {
+            return Err(SourceError::Spec(format!(
+                "sim option `{k}` given twice in `{query}`"
+            )));
+        }
         for (k, v) in query_pairs(query) {
             match k {
                 "seed" => o.seed = v.parse().map_err(|_| bad(k, v, "an integer >= 0"))?,
