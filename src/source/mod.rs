@@ -206,6 +206,17 @@ fn parse(uri: &str) -> Result<Spec<'_>, SourceError> {
             sim::scene_named(path)?,
             sim::SimOptions::parse(query)?,
         )),
+        // A bare path: say which URI it likely meant.
+        _ if !uri.contains(':') && uri.contains('/') => {
+            let meant = if uri.starts_with("/dev/video") {
+                "v4l2"
+            } else {
+                "y4m"
+            };
+            Err(SourceError::Spec(format!(
+                "`{uri}` has no scheme: write `{meant}:{uri}`"
+            )))
+        }
         _ => Err(SourceError::Spec(format!(
             "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
         ))),
@@ -293,6 +304,16 @@ mod tests {
         );
         assert_eq!(size("y4m:-"), None);
         assert!(planned_size("y4m:/nonexistent/a.y4m").is_err());
+    }
+
+    #[test]
+    fn a_bare_path_is_shown_the_uri_to_write() {
+        let e = check("/tmp/a.y4m").unwrap_err().to_string();
+        assert!(e.contains("write `y4m:/tmp/a.y4m`"), "{e}");
+        let e = check("/dev/video0").unwrap_err().to_string();
+        assert!(e.contains("write `v4l2:/dev/video0`"), "{e}");
+        let e = check("rtsp://cam").unwrap_err().to_string();
+        assert!(e.contains("unknown scheme `rtsp`"), "{e}");
     }
 
     /// Before: the last of two values won, silently.
