@@ -817,6 +817,15 @@ fn run_source(
         delivered.join(", "),
         counters.dropped_queue.load(Ordering::Relaxed),
     );
+    let finals = counters.dropped_finals.load(Ordering::Relaxed);
+    if finals > 0 {
+        log::warn!(
+            "{finals} final records (final heights, calibration, bye) were dropped with the queue \
+             full: raise report.held_finals (now {}) or report.queue (now {})",
+            cfg.report.held_finals,
+            cfg.report.queue
+        );
+    }
     match summary.error {
         Some(e) => {
             log::error!("{e}");

@@ -25,6 +25,9 @@ use std::sync::Arc;
 pub struct Counters {
     /// Records dropped because the queue was full.
     pub dropped_queue: AtomicU64,
+    /// Of those, final records (the held list was full too, or still held
+    /// at the end's timeout): what a user misses most, named apart.
+    pub dropped_finals: AtomicU64,
     /// Record deliveries that failed at a sink (one per sink per record).
     /// What each sink delivered in the end is its [`SinkTally`].
     pub dropped_sink: AtomicU64,
@@ -122,6 +125,7 @@ impl Reporter {
             self.held.push_back(record);
         } else {
             self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
+            self.counters.dropped_finals.fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -138,9 +142,13 @@ impl Reporter {
             self.retry_held();
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
+        let left = self.held.len() as u64;
         self.counters
             .dropped_queue
-            .fetch_add(self.held.len() as u64, Ordering::Relaxed);
+            .fetch_add(left, Ordering::Relaxed);
+        self.counters
+            .dropped_finals
+            .fetch_add(left, Ordering::Relaxed);
     }
 }
 
@@ -347,6 +355,17 @@ mod tests {
             "gave up at once"
         );
         assert_eq!(counters.dropped_queue.load(Ordering::Relaxed), 1);
+        assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 1);
+        assert_eq!(rx.try_iter().count(), 2);
+        // More finals than the queue and the held list take: the rest are
+        // dropped and counted as finals.
+        let (mut rep, rx, counters) = Reporter::new(2, 1);
+        for f in 0..5 {
+            rep.send(final_height(f));
+        }
+        assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 3);
+        rep.finish_unless(std::time::Duration::from_secs(3600), || true);
+        assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 3);
         assert_eq!(rx.try_iter().count(), 2);
         // Without a signal, the held final goes out once there is room.
         let (mut rep, rx, counters) = Reporter::new(2, 8);
