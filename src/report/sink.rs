@@ -1077,7 +1077,7 @@ mod tests {
             ("mqtt:h:", &format!("expected {form}")),
             ("mqtt:h:0", "port `0` is not in 1..=65535"),
             ("mqtt:h?qos=7", "`qos=7`: expected 0 or 1"),
-            ("mqtt:h?tls=maybe", "`tls=maybe`: expected true or false"),
+            ("mqtt:h?tls=maybe", "`tls=maybe`: expected true or false (or 1/0, yes/no)"),
             ("mqtt:h?ca=", "`ca=`: expected the path of a PEM file"),
             (
                 "mqtt:h?bogus=1",
