@@ -20,6 +20,50 @@ struct StderrLogger {
 
 static LOGGER: OnceLock<StderrLogger> = OnceLock::new();
 
+/// A log line assembled in a fixed buffer and written with one `write(2)`
+/// (a longer line goes out in buffer-sized pieces). Formatted straight
+/// into unbuffered stderr, a line took 15–25 writes, and a terminal or log
+/// file that another process writes to as well (ffmpeg decoding beside
+/// the run, a second stature) could get pieces of two lines mixed.
+/// Allocates nothing.
+struct Line<W: Write> {
+    out: W,
+    buf: [u8; 1024],
+    len: usize,
+}
+
+impl<W: Write> Line<W> {
+    fn new(out: W) -> Self {
+        Line {
+            out,
+            buf: [0; 1024],
+            len: 0,
+        }
+    }
+
+    /// Writes what is buffered (errors are dropped: a log line has
+    /// nowhere else to go).
+    fn flush(&mut self) {
+        let _ = self.out.write_all(&self.buf[..self.len]);
+        self.len = 0;
+    }
+}
+
+impl<W: Write> std::fmt::Write for Line<W> {
+    fn write_str(&mut self, mut s: &str) -> std::fmt::Result {
+        while !s.is_empty() {
+            if self.len == self.buf.len() {
+                self.flush();
+            }
+            let n = s.len().min(self.buf.len() - self.len);
+            self.buf[self.len..self.len + n].copy_from_slice(&s.as_bytes()[..n]);
+            self.len += n;
+            s = &s[n..];
+        }
+        Ok(())
+    }
+}
+
 /// The syslog priority journald files a line of `level` under.
 pub fn syslog_priority(level: Level) -> u8 {
     match level {
@@ -60,19 +104,21 @@ impl Log for StderrLogger {
             Level::Debug => "DEBUG",
             Level::Trace => "TRACE",
         };
-        // One write per line so that lines from two threads never interleave.
-        let mut err = std::io::stderr().lock();
+        // Held for the whole line: two threads' lines never interleave.
+        let mut line = Line::new(std::io::stderr().lock());
+        use std::fmt::Write as _;
         let _ = if self.journal {
             writeln!(
-                err,
+                line,
                 "<{}>[{:>9.3}s {level}] {}",
                 syslog_priority(r.level()),
                 t.as_secs_f64(),
                 r.args()
             )
         } else {
-            writeln!(err, "[{:>9.3}s {level}] {}", t.as_secs_f64(), r.args())
+            writeln!(line, "[{:>9.3}s {level}] {}", t.as_secs_f64(), r.args())
         };
+        line.flush();
     }
     fn flush(&self) {}
 }
@@ -99,6 +145,36 @@ pub fn init(level: LevelFilter) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Counts the writes a line takes.
+    struct Writes(Vec<usize>);
+
+    impl Write for &mut Writes {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            self.0.push(b.len());
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_log_line_is_one_write_and_a_long_one_a_few() {
+        use std::fmt::Write as _;
+        let mut w = Writes(Vec::new());
+        let mut line = Line::new(&mut w);
+        writeln!(line, "[{:>9.3}s {}] {} {}", 1.5, "INFO ", "frame", 42).unwrap();
+        line.flush();
+        let whole = format!("[{:>9.3}s {}] {} {}\n", 1.5, "INFO ", "frame", 42);
+        assert_eq!(w.0, [whole.len()]);
+        let mut w = Writes(Vec::new());
+        let mut line = Line::new(&mut w);
+        let long = "x".repeat(2500);
+        writeln!(line, "{long}").unwrap();
+        line.flush();
+        assert_eq!(w.0, [1024, 1024, 453]);
+    }
 
     #[test]
     fn the_journal_stream_is_recognised_only_as_stderr_itself() {
