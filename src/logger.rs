@@ -164,9 +164,10 @@ mod tests {
         use std::fmt::Write as _;
         let mut w = Writes(Vec::new());
         let mut line = Line::new(&mut w);
-        writeln!(line, "[{:>9.3}s {}] {} {}", 1.5, "INFO ", "frame", 42).unwrap();
+        let (t, level, n) = (1.5, "INFO ", 42);
+        writeln!(line, "[{t:>9.3}s {level}] frame {n}").unwrap();
         line.flush();
-        let whole = format!("[{:>9.3}s {}] {} {}\n", 1.5, "INFO ", "frame", 42);
+        let whole = format!("[{t:>9.3}s {level}] frame {n}\n");
         assert_eq!(w.0, [whole.len()]);
         let mut w = Writes(Vec::new());
         let mut line = Line::new(&mut w);
