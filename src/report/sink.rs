@@ -123,10 +123,9 @@ impl SinkSpec {
                     ));
                 }
                 let mut baud = 115_200;
-                if let Some(k) = crate::source::repeated_key(query) {
-                    return Err(format!("`{k}` given twice in `{query}`"));
-                }
-                for (k, v) in crate::source::query_pairs(query) {
+                let pairs = crate::source::query_pairs(query)
+                    .map_err(|k| format!("`{k}` given twice in `{query}`"))?;
+                for (k, v) in pairs {
                     match (k, v.parse::<u32>()) {
                         ("baud", Ok(b)) if (300..=4_000_000).contains(&b) => baud = b,
                         ("baud", _) => {

@@ -161,23 +161,24 @@ pub fn split_uri(uri: &str) -> Option<(&str, &str, &str)> {
     (!scheme.is_empty()).then_some((scheme, path, query))
 }
 
-/// The first key a query string gives twice (`seed=1&seed=2`): which one
-/// was meant is anyone's guess, so every parser refuses it rather than
-/// keep the last.
-pub fn repeated_key(query: &str) -> Option<&str> {
-    let keys = || query_pairs(query).map(|(k, _)| k);
-    keys()
+/// The `k=v` pairs of a query string, or `Err` with the first key it
+/// gives twice (`seed=1&seed=2`): which one was meant is anyone's guess,
+/// so no parser keeps the last.
+pub fn query_pairs(query: &str) -> Result<impl Iterator<Item = (&str, &str)>, &str> {
+    let pairs = || {
+        query
+            .split('&')
+            .filter(|p| !p.is_empty())
+            .map(|p| p.split_once('=').unwrap_or((p, "")))
+    };
+    let keys = || pairs().map(|(k, _)| k);
+    match keys()
         .enumerate()
         .find(|&(i, k)| keys().take(i).any(|e| e == k))
-        .map(|(_, k)| k)
-}
-
-/// Iterates `k=v` pairs of a query string.
-pub fn query_pairs(query: &str) -> impl Iterator<Item = (&str, &str)> {
-    query
-        .split('&')
-        .filter(|p| !p.is_empty())
-        .map(|p| p.split_once('=').unwrap_or((p, "")))
+    {
+        Some((_, k)) => Err(k),
+        None => Ok(pairs()),
+    }
 }
 
 /// A source URI split by scheme, its parts parsed ([`parse`]).
@@ -319,8 +320,9 @@ mod tests {
     /// Before: the last of two values won, silently.
     #[test]
     fn an_option_given_twice_is_refused_everywhere() {
-        assert_eq!(repeated_key("seed=1&frames=5&seed=2"), Some("seed"));
-        assert_eq!(repeated_key("seed=1&frames=5"), None);
+        assert_eq!(query_pairs("seed=1&frames=5&seed=2").err(), Some("seed"));
+        let pairs: Vec<_> = query_pairs("seed=1&frames=5").unwrap().collect();
+        assert_eq!(pairs, [("seed", "1"), ("frames", "5")]);
         let sim = check("sim:plaza?seed=1&seed=2").unwrap_err().to_string();
         assert!(sim.contains("`seed` given twice"), "{sim}");
         let cam = parse("v4l2:/dev/video0?width=640&width=320").err().unwrap();

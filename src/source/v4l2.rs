@@ -42,12 +42,10 @@ impl V4l2Spec {
             fourcc: *b"YUYV",
             buffers: 4,
         };
-        if let Some(k) = super::repeated_key(query) {
-            return Err(SourceError::Spec(format!(
-                "v4l2 option `{k}` given twice in `{query}`"
-            )));
-        }
-        for (k, v) in query_pairs(query) {
+        let pairs = query_pairs(query).map_err(|k| {
+            SourceError::Spec(format!("v4l2 option `{k}` given twice in `{query}`"))
+        })?;
+        for (k, v) in pairs {
             let num = |lo: u32, hi: u32| -> Result<u32, SourceError> {
                 v.parse::<u32>()
                     .ok()

@@ -257,10 +257,9 @@ impl MqttSpec {
                 "`{k}={v}`: expected true or false (or 1/0, yes/no)"
             )),
         };
-        if let Some(k) = crate::source::repeated_key(query) {
-            return Err(format!("`{k}` given twice in `{query}`"));
-        }
-        for (k, v) in crate::source::query_pairs(query) {
+        let pairs = crate::source::query_pairs(query)
+            .map_err(|k| format!("`{k}` given twice in `{query}`"))?;
+        for (k, v) in pairs {
             match k {
                 "topic" => {
                     check_topic(v).map_err(|e| format!("topic `{v}`: expected {e}"))?;

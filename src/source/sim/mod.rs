@@ -93,12 +93,9 @@ impl SimOptions {
             "1" | "true" | "" => Ok(true),
             _ => Err(bad(k, v, "0 or 1")),
         };
-        if let Some(k) = super::repeated_key(query) {
-            return Err(SourceError::Spec(format!(
-                "sim option `{k}` given twice in `{query}`"
-            )));
-        }
-        for (k, v) in query_pairs(query) {
+        let pairs = query_pairs(query)
+            .map_err(|k| SourceError::Spec(format!("sim option `{k}` given twice in `{query}`")))?;
+        for (k, v) in pairs {
             match k {
                 "seed" => o.seed = v.parse().map_err(|_| bad(k, v, "an integer >= 0"))?,
                 "frames" => match v.parse::<u64>() {
