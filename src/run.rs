@@ -423,12 +423,19 @@ impl Pipeline {
     /// track's final height measured with it.
     pub fn finish(&mut self, reporter: &mut Reporter) {
         let frame = self.frames;
-        if let Some(c) = self.calib.finish(frame) {
+        if let Some(c) = self.calib.finish(self.last_frame()) {
             self.calibration = Some(c.clone());
             reporter.send(Record::Calibration(c));
         }
         self.tracker.end_all();
         self.heights(reporter, frame, true, &mut Direct);
+    }
+
+    /// Index of the last frame processed (0 before the first): the
+    /// `frame` of the records made after it (status, bye, the final
+    /// calibration), which [`Pipeline::frames`] counts one past.
+    pub fn last_frame(&self) -> u64 {
+        self.frames.saturating_sub(1)
     }
 
     /// People tracked now.
@@ -752,7 +759,7 @@ pub fn run_observed(
         *last = (Instant::now(), p.frames, rate);
         let dropped = reporter.counters().dropped();
         reporter.send(Record::Status(Status {
-            frame: p.frames,
+            frame: p.last_frame(),
             frames: p.frames,
             fps: rate as f32,
             dropped,
@@ -800,7 +807,7 @@ pub fn run_observed(
     if error.is_none() {
         let dropped = reporter.counters().dropped();
         reporter.send(Record::Bye(Bye {
-            frame: p.frames,
+            frame: p.last_frame(),
             frames: p.frames,
             dropped,
         }));

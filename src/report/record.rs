@@ -188,13 +188,41 @@ impl Record {
     }
 }
 
-/// Copies `s` into a bounded string, cutting at a character boundary.
+/// Copies `s` into a bounded string. One too long is cut at a character
+/// boundary and ends with `…`, so a reader can tell (a long source path
+/// in `hello`).
 pub fn bounded<const N: usize>(s: &str) -> HString<N> {
     let mut out = HString::new();
+    if out.push_str(s).is_ok() {
+        return out;
+    }
+    const MARK: char = '…';
+    let room = N.saturating_sub(MARK.len_utf8());
     for c in s.chars() {
-        if out.push(c).is_err() {
+        if out.len() + c.len_utf8() > room {
             break;
         }
+        // Within `room`, below the capacity.
+        let _ = out.push(c);
     }
+    // `room` left space for it (unless N is under 3 bytes: then nothing).
+    let _ = out.push(MARK);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bounded_marks_a_cut() {
+        assert_eq!(bounded::<16>("streaming").as_str(), "streaming");
+        assert_eq!(bounded::<9>("streaming").as_str(), "streaming");
+        assert_eq!(bounded::<8>("streaming").as_str(), "strea…");
+        // A cut never splits a character: 'é' is two bytes.
+        assert_eq!(bounded::<8>("ééééé").as_str(), "éé…");
+        let long = format!("y4m:/data/{}.y4m", "x".repeat(200));
+        let b = bounded::<128>(&long);
+        assert!(b.len() <= 128 && b.ends_with('…') && long.starts_with(&b[..b.len() - 3]));
+    }
 }

@@ -65,6 +65,14 @@ fn y4m_file_streams_hello_status_bye_to_stdout_and_udp() {
     assert_eq!(recs[0]["width"], 64);
     assert_eq!(recs[0]["fps"], 25.0);
     assert_eq!(recs.last().unwrap()["frames"], 30);
+    // `frame` is an index: the records made after the last frame carry 29.
+    for r in &recs {
+        assert!(r["frame"].as_u64().unwrap() < 30, "{r}");
+    }
+    assert_eq!(recs.last().unwrap()["frame"], 29);
+    let last_status = recs.iter().rev().find(|r| r["type"] == "status").unwrap();
+    assert_eq!(last_status["frame"], 29);
+    assert_eq!(last_status["frames"], 30);
     let mut buf = [0u8; 2048];
     let n = udp.recv(&mut buf).unwrap();
     let first: serde_json::Value = serde_json::from_slice(&buf[..n]).unwrap();
