@@ -371,6 +371,13 @@ fn config_cmd(a: ConfigArgs) -> i32 {
         say!("error: {}: {}", path.display(), r.message);
         return r.code;
     }
+    if cfg.report.sinks.is_empty() {
+        // `run` warns the same at start: allowed, rarely meant.
+        say!(
+            "warning: {}: report.sinks is empty: a run's records go nowhere",
+            path.display()
+        );
+    }
     print_out(&format!("{}: ok\n", path.display())).map_or_else(|code| code, |()| exit::OK)
 }
 
@@ -895,7 +902,8 @@ fn demo(a: DemoArgs) -> i32 {
         })
         .collect();
     // The frames actually run: a signal may have stopped the demo early.
-    let calibration_missing = calibration_missing(sim.position().min(total), sim.frames());
+    let frames_run = sim.position().min(total);
+    let calibration_missing = calibration_missing(frames_run, sim.frames());
     let table = demo::comparison_table(
         sim.scene_truth(),
         &cast,
@@ -904,6 +912,7 @@ fn demo(a: DemoArgs) -> i32 {
             calibration_missing: &calibration_missing,
             heights: &heights,
             heights_missing: "no person track was measured",
+            frames_run,
         },
     );
     say_part!("{table}");

@@ -599,7 +599,13 @@ impl Calibrator {
             per_track: k,
         };
         if let Err(e) = st.write(&view) {
-            log::warn!("calibration state {}: {e}", st.path().display());
+            // The write is atomic (a temporary file renamed over it), so a
+            // failure leaves the last good state in place: say so, the
+            // installer's next question is whether it was lost.
+            log::warn!(
+                "calibration state {}: not saved: {e}; the file keeps the state saved before",
+                st.path().display()
+            );
         }
         self.state = Some(st);
     }

@@ -1483,6 +1483,23 @@ fn sim_opens_every_output_before_emptying_one() {
 /// `config --check` makes the checks `run` makes at start-up, with its
 /// exit codes (before: these configs passed, then `run` stopped with 3).
 #[test]
+fn config_check_warns_of_a_run_with_no_sinks() {
+    let dir = common::fresh_dir("cli-config_check_warns_of_a_run_with_no_sinks");
+    let cfg = dir.join("quiet.toml");
+    std::fs::write(&cfg, "[report]\nsinks = []\n").unwrap();
+    let out = run(&["config", "--check", &cfg.display().to_string()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("report.sinks is empty"), "{err}");
+    assert!(String::from_utf8_lossy(&out.stdout).ends_with(": ok\n"));
+    // The default sinks draw no warning.
+    std::fs::write(&cfg, "[report]\nsinks = [\"stdout\"]\n").unwrap();
+    let out = run(&["config", "--check", &cfg.display().to_string()]);
+    assert!(out.status.success());
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("report.sinks"));
+}
+
+#[test]
 fn config_check_refuses_what_run_would_refuse_at_start() {
     let dir = common::fresh_dir("cli-config_check_refuses_what_run_would_refuse");
     let cases = [

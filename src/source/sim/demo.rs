@@ -32,6 +32,9 @@ pub struct Estimates<'a> {
     pub heights: &'a [HeightEstimate],
     /// Why there are no heights (e.g. "stage missing: measure").
     pub heights_missing: &'a str,
+    /// Frames the pipeline ran: people who appear only after them are
+    /// left out of the table.
+    pub frames_run: u64,
 }
 
 /// Formats the comparison table (several lines, ending with a newline).
@@ -98,10 +101,12 @@ pub fn comparison_table(truth: &SceneTruth, cast: &[CastMember], est: &Estimates
     let people: Vec<&CastMember> = cast
         .iter()
         .filter(|m| m.kind == Kind::Person && m.frames_in_view > 0)
+        .filter(|m| m.first_frame < est.frames_run)
         .collect();
     let _ = writeln!(
         s,
-        "\nPeople in view: {} (true heights drawn from N(1.70 m, 0.08 m)):",
+        "\nPeople in view in the {} frames run: {} (true heights drawn from N(1.70 m, 0.08 m)):",
+        est.frames_run,
         people.len()
     );
     let _ = writeln!(
@@ -176,6 +181,7 @@ mod tests {
                 calibration_missing: "stage missing: calibrate",
                 heights: &[],
                 heights_missing: "stage missing: measure",
+                frames_run: 50,
             },
         );
         assert!(
@@ -189,5 +195,48 @@ mod tests {
             .count();
         assert!(in_view > 0);
         assert_eq!(t.matches("stage missing: measure").count(), in_view, "{t}");
+    }
+
+    #[test]
+    fn table_leaves_out_people_who_appear_after_the_frames_run() {
+        let sim = SimSource::open("plaza", "seed=1").unwrap();
+        let cast = sim.cast();
+        let table = |frames_run| {
+            comparison_table(
+                sim.scene_truth(),
+                &cast,
+                &Estimates {
+                    calibration: None,
+                    calibration_missing: "stopped",
+                    heights: &[],
+                    heights_missing: "none",
+                    frames_run,
+                },
+            )
+        };
+        let people = |first_before: u64| {
+            cast.iter()
+                .filter(|m| m.kind == Kind::Person && m.frames_in_view > 0)
+                .filter(|m| m.first_frame < first_before)
+                .count()
+        };
+        let (early, all) = (people(60), people(u64::MAX));
+        assert!(0 < early && early < all, "{early} of {all}");
+        let short = table(60);
+        assert_eq!(
+            short.matches("not estimated (none)").count(),
+            early,
+            "{short}"
+        );
+        assert!(
+            short.contains(&format!("in the 60 frames run: {early} ")),
+            "{short}"
+        );
+        let whole = table(sim.frames());
+        assert_eq!(
+            whole.matches("not estimated (none)").count(),
+            all,
+            "{whole}"
+        );
     }
 }
