@@ -771,8 +771,13 @@ fn run_source(
     let mut told = false;
     while !io.is_finished() {
         if give_up() {
+            // The run's own summary line is below, after the tallies this
+            // wait was for: say what the run did here instead.
             log::warn!(
-                "stopped by a signal while the report sinks still held records: not delivered"
+                "{} frames, stopped by {}; then a signal stopped the wait for the report \
+                 sinks: the records they still held were not delivered",
+                summary.frames,
+                summary.stopped_by
             );
             return exit::UNAVAILABLE;
         }

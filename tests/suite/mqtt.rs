@@ -1276,3 +1276,54 @@ fn the_real_pipeline_publishes_what_the_file_sink_writes() {
     assert_eq!(retained.len(), 1);
     assert!(retained[0].retain && &retained[0].payload == last_cal);
 }
+
+/// A signal while the run waits for an absent broker to take what its
+/// sink holds ends the wait at once (exit 3) and still says what the run
+/// did: frames and why it stopped (before, only that records were lost).
+#[test]
+fn a_signal_during_the_wait_for_an_absent_broker_still_sums_up_the_run() {
+    let dir = temp_dir("mqtt-signal-during-sink-wait");
+    let conf = config_file(&dir, "shutdown_timeout_s = 120.0\nreconnect_max_s = 0.5\n");
+    let mut child = Command::new(common::stature_bin())
+        .arg("run")
+        .arg("--config")
+        .arg(&conf)
+        .args(["--source", "sim:plaza?seed=1", "--frames", "20", "--report"])
+        // Nothing listens there: every record stays in the sink.
+        .arg(format!("mqtt:127.0.0.1:{}?client_id=away", free_port()))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let (mut line, mut log) = (String::new(), String::new());
+    while !line.contains("waiting for the report sinks") {
+        line.clear();
+        let n = stderr.read_line(&mut line).unwrap();
+        assert!(n > 0, "stderr ended before the wait: {log}");
+        log.push_str(&line);
+    }
+    assert!(Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "SIGTERM did not end the wait: {log}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    assert_eq!(status.code(), Some(3), "{log}{rest}");
+    assert!(
+        rest.contains("20 frames, stopped by frame limit") && rest.contains("were not delivered"),
+        "{log}{rest}"
+    );
+}
