@@ -364,7 +364,8 @@ fn config_cmd(a: ConfigArgs) -> i32 {
         Ok(())
     } else {
         check_run_paths(&cfg)
-            .and_then(|_files| check_sinks(&cfg))
+            .map(|files| warn_of_unusable_state(&path, files.state.as_ref()))
+            .and_then(|()| check_sinks(&cfg))
             .and_then(|()| check_source_memory(&cfg))
     };
     if let Err(r) = checked {
@@ -379,6 +380,31 @@ fn config_cmd(a: ConfigArgs) -> i32 {
         );
     }
     print_out(&format!("{}: ok\n", path.display())).map_or_else(|code| code, |()| exit::OK)
+}
+
+/// `config --check` on a state file a run would not resume from: a run
+/// goes on without it (a corrupt one is set aside, an unreadable one left
+/// alone), so these are warnings, but the installer checking a
+/// configuration wants to know before the camera starts from nothing.
+fn warn_of_unusable_state(
+    config: &std::path::Path,
+    state: Option<&stature::calibrate::state::StateFile>,
+) {
+    use stature::calibrate::state::StateError;
+    let Some(st) = state else { return };
+    match st.load() {
+        Ok(_) => {}
+        Err(e @ StateError::Corrupt(_)) => say!(
+            "warning: {}: calibration state {}: {e}; a run would set it aside and start afresh",
+            config.display(),
+            st.path().display()
+        ),
+        Err(e) => say!(
+            "warning: {}: calibration state {}: cannot read it ({e}); a run would keep no state",
+            config.display(),
+            st.path().display()
+        ),
+    }
 }
 
 /// `config --check`'s part of what `run` checks once its source is open:

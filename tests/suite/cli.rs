@@ -1500,6 +1500,33 @@ fn config_check_warns_of_a_run_with_no_sinks() {
 }
 
 #[test]
+fn config_check_warns_of_a_state_file_a_run_would_set_aside() {
+    let dir = common::fresh_dir("cli-config_check_warns_of_a_state_file");
+    let state = dir.join("camera.state");
+    let cfg = dir.join("camera.toml");
+    std::fs::write(&cfg, format!("[run]\nstate = \"{}\"\n", state.display())).unwrap();
+    let check = || {
+        let out = run(&["config", "--check", &cfg.display().to_string()]);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{err}");
+        err
+    };
+    // No file yet: a new one, nothing to say.
+    assert!(!check().contains("calibration state"));
+    std::fs::write(&state, "{\"not\": \"a state\"}\n").unwrap();
+    let err = check();
+    assert!(
+        err.contains("corrupt state file") && err.contains("set it aside"),
+        "{err}"
+    );
+    // The check only looked: the file is where it was, as it was.
+    assert_eq!(
+        std::fs::read_to_string(&state).unwrap(),
+        "{\"not\": \"a state\"}\n"
+    );
+}
+
+#[test]
 fn config_check_refuses_what_run_would_refuse_at_start() {
     let dir = common::fresh_dir("cli-config_check_refuses_what_run_would_refuse");
     let cases = [
