@@ -450,18 +450,18 @@ impl Config {
         // (what the file is to the run, why it must not be an output, it)
         let mut inputs: Vec<(String, &str, FileId)> = Vec::new();
         let read = "the run would write over what it reads";
-        match crate::source::split_uri(&self.source.uri) {
-            Some(("y4m", "-", "")) => {
+        match crate::source::y4m_path(&self.source.uri) {
+            Some("-") => {
                 if let Some(id) = FileId::of_stdio(std::io::stdin()) {
                     inputs.push(("the standard input source.uri reads".into(), read, id));
                 }
             }
-            Some(("y4m", path, "")) => inputs.push((
+            Some(path) => inputs.push((
                 format!("the source.uri Y4M file `{path}`"),
                 read,
                 FileId::of_path(path),
             )),
-            _ => {}
+            None => {}
         }
         if !self.classify.weights.is_empty() {
             inputs.push((

@@ -201,7 +201,17 @@ fn parse(uri: &str) -> Result<Spec<'_>, SourceError> {
             Err(SourceError::Spec(format!("`{uri}`: y4m needs a file path")))
         }
         "y4m" if query.is_empty() => Ok(Spec::Y4m(path)),
-        "y4m" => Err(SourceError::Spec(format!("`{uri}`: y4m takes no options"))),
+        // y4m takes no options, so a `?` may be part of a file name.
+        "y4m" => {
+            let whole = &uri[uri.find(':').map_or(0, |i| i + 1)..];
+            if std::path::Path::new(whole).exists() {
+                Ok(Spec::Y4m(whole))
+            } else {
+                Err(SourceError::Spec(format!(
+                    "`{uri}`: y4m takes no options (and no file `{whole}` exists)"
+                )))
+            }
+        }
         "v4l2" => v4l2::V4l2Spec::parse(path, query).map(Spec::V4l2),
         "sim" => Ok(Spec::Sim(
             sim::scene_named(path)?,
@@ -233,6 +243,15 @@ pub fn check(uri: &str) -> Result<(), SourceError> {
     match parse(uri)? {
         Spec::V4l2(_) if !v4l2::BUILT_IN => Err(SourceError::Unsupported(v4l2::NOT_BUILT_IN)),
         _ => Ok(()),
+    }
+}
+
+/// The file a `y4m:` source reads (`-`: standard input); `None` for any
+/// other source or a URI that does not parse.
+pub fn y4m_path(uri: &str) -> Option<&str> {
+    match parse(uri) {
+        Ok(Spec::Y4m(path)) => Some(path),
+        _ => None,
     }
 }
 
@@ -315,6 +334,29 @@ mod tests {
         assert!(e.contains("write `v4l2:/dev/video0`"), "{e}");
         let e = check("rtsp://cam").unwrap_err().to_string();
         assert!(e.contains("unknown scheme `rtsp`"), "{e}");
+    }
+
+    /// Before: "y4m takes no options" for a file named `a?b.y4m`.
+    #[test]
+    fn a_y4m_file_name_may_hold_a_question_mark() {
+        let dir = std::env::temp_dir().join(format!("stature-y4m-q-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("a?b.y4m");
+        std::fs::write(&file, b"").unwrap();
+        let uri = format!("y4m:{}", file.display());
+        let parsed = parse(&uri);
+        let _ = std::fs::remove_dir_all(&dir);
+        assert!(
+            matches!(parsed, Ok(Spec::Y4m(p)) if p == file.to_str().unwrap()),
+            "{uri}"
+        );
+        let e = check("y4m:/nonexistent/a.y4m?loop=1")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("y4m takes no options (and no file `/nonexistent/a.y4m?loop=1` exists)"),
+            "{e}"
+        );
     }
 
     /// Before: the last of two values won, silently.
