@@ -270,7 +270,7 @@ impl ReportConfig {
 /// with `/`, so it never equals `stdout` or a `udp:` key.)
 fn destination(spec: &crate::report::sink::SinkSpec) -> Option<String> {
     use crate::report::sink::SinkSpec;
-    use std::net::{IpAddr, SocketAddr, ToSocketAddrs};
+    use std::net::{IpAddr, SocketAddr};
     match spec {
         SinkSpec::Stdout => Some("stdout".into()),
         SinkSpec::File(path) | SinkSpec::Serial { path, .. } => Some(resolved_path(path)),
@@ -278,7 +278,9 @@ fn destination(spec: &crate::report::sink::SinkSpec) -> Option<String> {
             // The sink sends to the first address (`Sink::open_with`); a
             // name that does not resolve now is compared as written (the
             // sink's own open reports it).
-            let first = addr.to_socket_addrs().ok().and_then(|mut a| a.next());
+            let first = crate::report::sink::udp_addresses(addr)
+                .ok()
+                .and_then(|mut a| a.next());
             Some(match first {
                 Some(SocketAddr::V6(a)) if a.ip().to_ipv4_mapped().is_some() => {
                     let v4 = a.ip().to_ipv4_mapped().map(IpAddr::V4);

@@ -478,8 +478,7 @@ impl Sink {
                 p.clone(),
             )),
             SinkSpec::Udp(addr) => {
-                let dest = addr
-                    .to_socket_addrs()
+                let dest = udp_addresses(addr)
                     .map_err(|e| {
                         io::Error::new(e.kind(), format!("UDP destination `{addr}`: {e}"))
                     })?
@@ -745,8 +744,50 @@ fn open_report_file(path: &str) -> io::Result<std::fs::File> {
         })
 }
 
+/// The addresses of a `udp:` destination `HOST:PORT`. A bracketed IPv6
+/// host is resolved without its brackets, so that a link-local address
+/// with its interface (`[fe80::1%eth0]:5000`), which the standard
+/// library's address parser does not read, goes to the system resolver,
+/// which does.
+pub fn udp_addresses(addr: &str) -> io::Result<std::vec::IntoIter<SocketAddr>> {
+    let bracketed = addr
+        .strip_prefix('[')
+        .and_then(|rest| rest.rsplit_once("]:"))
+        .and_then(|(host, port)| Some((host, port.parse::<u16>().ok()?)));
+    match bracketed {
+        Some((host, port)) if host.contains('%') => (host, port).to_socket_addrs(),
+        _ => addr.to_socket_addrs(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    /// Before: "failed to lookup address information" for a scoped
+    /// link-local destination.
+    #[test]
+    fn a_link_local_udp_destination_names_its_interface() {
+        use super::udp_addresses;
+        use std::net::SocketAddr;
+        let a: Vec<SocketAddr> = udp_addresses("[fe80::1%lo]:5000").unwrap().collect();
+        match a.first() {
+            Some(SocketAddr::V6(v6)) => {
+                assert_eq!(v6.port(), 5000);
+                assert_eq!(v6.ip().segments()[0], 0xfe80);
+                assert_ne!(v6.scope_id(), 0, "the interface's index");
+            }
+            other => panic!("{other:?}"),
+        }
+        // Everything else as before.
+        assert_eq!(
+            udp_addresses("[::1]:9").unwrap().next(),
+            Some("[::1]:9".parse().unwrap())
+        );
+        assert_eq!(
+            udp_addresses("127.0.0.1:9").unwrap().next(),
+            Some("127.0.0.1:9".parse().unwrap())
+        );
+        assert!(udp_addresses("[fe80::1%no-such-if9]:5000").is_err());
+    }
 
     /// Accepts `room` bytes, then fails like a full disk until given more.
     struct FullDisk {
