@@ -533,6 +533,16 @@ impl Calibrator {
         self.last_refit = frame;
         self.new_anchors = 0;
         self.refit();
+        // The anchors changed: saved on the interval whether or not the
+        // estimate moved enough for a record (a settled calibration keeps
+        // learning, and a power cut must not lose it all).
+        let due = self
+            .last_state_write
+            .is_none_or(|f| (frame - f) as f64 >= self.cfg.state_interval_s * self.fps);
+        if due && self.state.is_some() {
+            self.last_state_write = Some(frame);
+            self.save_state();
+        }
         let est = self.estimate?;
         if let Some(dg) = est.degeneracy {
             if self.degeneracy_told != Some(dg) {
@@ -557,13 +567,6 @@ impl Calibrator {
             return None;
         }
         self.emitted = Some(est);
-        let due = self
-            .last_state_write
-            .is_none_or(|f| (frame - f) as f64 >= self.cfg.state_interval_s * self.fps);
-        if due && self.state.is_some() {
-            self.last_state_write = Some(frame);
-            self.save_state();
-        }
         Some(est.record(frame, false))
     }
 

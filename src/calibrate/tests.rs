@@ -269,6 +269,58 @@ fn state_file_round_trip_and_corrupt_file() {
     ));
 }
 
+/// The state is written every `state_interval_s` while new anchors come
+/// in, also once the estimate has settled and sends no more records.
+/// Before, it was written only with a calibration record: a settled
+/// camera could go hours unsaved, and a power cut lost what it learnt.
+#[test]
+fn state_is_saved_on_the_interval_after_the_records_stop() {
+    let dir = crate::scratch::fresh_dir("state-interval");
+    let path = dir.join("cal.json");
+    let (cam, mut cfg) = state_test_camera();
+    // Records only when the confidence moves: the geometry never counts
+    // as material.
+    cfg.emit_focal_change = 1.0;
+    cfg.emit_angle_deg = 45.0;
+    cfg.state_interval_s = 2.0;
+    let obs = walk(&cam, &SynthScene::default(), &mut Rng::new(8));
+    let mut c = Calibrator::new(&cfg, 640, 480);
+    c.set_fps(25.0);
+    c.state = Some(state::StateFile::new(&path, 1 << 20));
+    let (first, last) = (obs[0].frame, obs.last().unwrap().frame);
+    let span_s = (last - first) as f64 / 25.0;
+    assert!(span_s > 20.0, "{span_s} s of walkers");
+    // The same people walk by again and again: the estimate settles and
+    // its records stop, while new anchors keep coming.
+    let mut saved = None;
+    let mut pass = |k: u64| {
+        let (mut records, mut writes) = (0, 0);
+        for o in &obs {
+            let frame = o.frame + k * (last - first + 1);
+            c.observe(frame, o.id + 1000 * k as u32, o.hf);
+            records += usize::from(c.update(frame).is_some());
+            let now = std::fs::read(&path).ok();
+            if now.is_some() && now != saved {
+                writes += 1;
+                saved = now;
+            }
+        }
+        (records, writes)
+    };
+    let _ = pass(0);
+    let (records, writes) = (1..3).map(&mut pass).last().unwrap();
+    eprintln!("{records} records, {writes} writes over {span_s:.0} s");
+    assert!(
+        records <= 1,
+        "{records} records: the estimate has not settled"
+    );
+    // About one write per interval (before: only with a record).
+    assert!(
+        writes as f64 >= 0.5 * span_s / cfg.state_interval_s,
+        "{writes} writes over {span_s:.0} s"
+    );
+}
+
 /// Two processes on one state file (an installer's `stature snapshot` with
 /// the service's config while the service runs): the first to open it
 /// writes it, the second resumes from it but never writes or moves it.
