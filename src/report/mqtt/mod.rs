@@ -129,14 +129,9 @@ impl MqttConfig {
             .map_err(|e| ConfigError::new("report.mqtt.client_id", &self.client_id, e))?;
         check_topic(&self.ha_prefix)
             .map_err(|e| ConfigError::new("report.mqtt.ha_prefix", &self.ha_prefix, e))?;
-        // A user name without a password is legal MQTT; the reverse is not.
-        if self.username.is_empty() && !self.password.is_empty() {
-            return Err(ConfigError::new(
-                "report.mqtt.password",
-                "(set)",
-                "a username as well (MQTT sends no password without one)",
-            ));
-        }
+        // A password without a user name is checked once the environment
+        // is merged in (`MqttSettings::check_credentials`): its
+        // STATURE_MQTT_USERNAME may supply the name.
         check_range("report.mqtt.keep_alive_s", self.keep_alive_s, 5..=3600)?;
         check_range("report.mqtt.buffer", self.buffer, 8..=65536)?;
         check_range(
@@ -394,9 +389,9 @@ pub struct MqttSettings {
     pub ha_prefix: String,
     /// User name and password, if any.
     pub credentials: Option<(String, String)>,
-    /// A password was given (`STATURE_MQTT_PASSWORD`) with no user name
-    /// anywhere: MQTT cannot send it, and connecting without it would
-    /// hide the mistake ([`MqttSettings::check_credentials`]).
+    /// A password was given (the file's or `STATURE_MQTT_PASSWORD`) with
+    /// no user name from either place: MQTT cannot send it, and connecting
+    /// without it would hide the mistake ([`MqttSettings::check_credentials`]).
     pub password_without_user: bool,
     /// Keep-alive, seconds.
     pub keep_alive_s: u32,
@@ -462,14 +457,16 @@ impl MqttSettings {
         }
     }
 
-    /// Refuses a password without a user name (the config file's is
-    /// refused by [`MqttConfig::validate`]; this catches the environment's).
+    /// Refuses a password without a user name, each from the config file
+    /// or the environment (a user name without a password is legal MQTT;
+    /// the reverse is not).
     pub fn check_credentials(&self) -> std::io::Result<()> {
         if self.password_without_user {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
-                "MQTT password set (STATURE_MQTT_PASSWORD) without a user name \
-                 (STATURE_MQTT_USERNAME or [report.mqtt] username): MQTT sends no password without one",
+                "MQTT password set ([report.mqtt] password or STATURE_MQTT_PASSWORD) without a \
+                 user name (STATURE_MQTT_USERNAME or [report.mqtt] username): MQTT sends no \
+                 password without one",
             ));
         }
         Ok(())
@@ -784,6 +781,28 @@ mod tests {
         );
         assert!(crate::report::mqtt::link::check_local(&e).is_err());
         assert!(s.check_credentials().is_ok());
+        // The file's password with the environment's user name is a pair
+        // (before: refused while validating the file, before the
+        // environment was read); alone it is refused the same way.
+        let file_pass = MqttConfig {
+            password: "file-pass".into(),
+            ..MqttConfig::default()
+        };
+        assert!(file_pass.validate().is_ok());
+        let paired = MqttSettings::resolve(&MqttSpec::parse("b").unwrap(), &file_pass, |k| {
+            (k == "STATURE_MQTT_USERNAME").then(|| "env-user".to_string())
+        });
+        assert_eq!(
+            paired.credentials,
+            Some(("env-user".into(), "file-pass".into()))
+        );
+        assert!(paired.check_credentials().is_ok());
+        let alone = MqttSettings::resolve(&MqttSpec::parse("b").unwrap(), &file_pass, |_| None);
+        let err = alone.check_credentials().unwrap_err().to_string();
+        assert!(
+            err.contains("without a") && !err.contains("file-pass"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -851,11 +870,6 @@ mod tests {
         c.validate().unwrap();
         c.qos = 2;
         assert_eq!(c.validate().unwrap_err().key, "report.mqtt.qos");
-        c = MqttConfig {
-            password: "x".into(),
-            ..Default::default()
-        };
-        assert_eq!(c.validate().unwrap_err().key, "report.mqtt.password");
         c = MqttConfig {
             topic: "a/#".into(),
             ..Default::default()
