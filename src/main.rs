@@ -135,7 +135,8 @@ struct RunArgs {
 #[derive(Args, Default)]
 #[group(multiple = false)]
 struct ScaleArgs {
-    /// Known camera mounting height in metres (best absolute heights).
+    /// Known camera mounting height in metres, instead of the prior on
+    /// people's mean height (README "Where it stands" compares the two).
     #[arg(long, value_name = "METRES", allow_negative_numbers = true, value_parser = metres)]
     camera_height: Option<f64>,
     /// Height of the first person tracked (walk through alone), metres.
@@ -204,7 +205,8 @@ struct TrainArgs {
     /// LBP cell side, pixels, 2..=32 dividing the window (default 8).
     #[arg(long, allow_negative_numbers = true)]
     lbp_cell: Option<u8>,
-    /// LBP comparison offset, grey levels (default 2).
+    /// LBP comparison offset, grey levels, 0..=64 (default 2; above that
+    /// nearly every pattern is the same).
     #[arg(long, allow_negative_numbers = true)]
     lbp_threshold: Option<u8>,
     /// How the box maps to the window: height (crop a wide box's sides; default) or contain (shrink it whole).
@@ -1468,6 +1470,7 @@ fn train_options(
     in_range("--margin", a.margin, 0..=256)?;
     in_range("--hog-cell", a.hog_cell, 2..=32)?;
     in_range("--lbp-cell", a.lbp_cell, 2..=32)?;
+    in_range("--lbp-threshold", a.lbp_threshold, 0..=64)?;
     let d = Layout::default_layout();
     let (w, h) = match &a.window {
         None => (d.win_w, d.win_h),

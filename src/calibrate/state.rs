@@ -2,8 +2,10 @@
 //! written atomically (temporary file in the same directory, `fsync`,
 //! rename, then `fsync` of the directory) so that a power cut leaves either
 //! the old or the new file, never a torn one. A state file that cannot be
-//! read or parsed, or that is for another frame size, is reported and
-//! renamed aside ([`StateFile::set_aside`]): calibration starts afresh.
+//! parsed, or that is for another frame size, is reported and renamed
+//! aside ([`StateFile::set_aside`]): calibration starts afresh. One that
+//! cannot be read (permissions, a failing card) is left where it is and
+//! the run keeps no state.
 //!
 //! Writing serialises into a buffer allocated once, so the periodic writes
 //! the loop makes do not allocate (paths shorter than a few hundred bytes

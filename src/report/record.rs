@@ -80,7 +80,7 @@ pub struct Height {
 /// `status`: periodic health.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Status {
-    /// Frame number.
+    /// Index of the last frame processed (`frames` − 1; 0 with none).
     pub frame: u64,
     /// Frames processed so far.
     pub frames: u64,
@@ -100,7 +100,7 @@ pub struct Status {
 /// `bye`: last record of a clean run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Bye {
-    /// Frame number (frames processed).
+    /// Index of the last frame processed (`frames` − 1; 0 with none).
     pub frame: u64,
     /// Frames processed.
     pub frames: u64,

@@ -323,11 +323,19 @@ impl Y4mSource {
             offset: 0,
             what,
         })?;
-        let scratch = if header.chroma == Chroma::C420 {
-            Vec::new()
-        } else {
-            vec![0; header.chroma.frame_bytes(header.size)]
-        };
+        // Allocated before `run`'s memory check, which needs the header's
+        // size: a size the memory cannot hold is exit 3, not an abort.
+        let mut scratch = Vec::new();
+        if header.chroma != Chroma::C420 {
+            let bytes = header.chroma.frame_bytes(header.size);
+            scratch
+                .try_reserve_exact(bytes)
+                .map_err(|e| SourceError::Open {
+                    what: format!("{name}: a {bytes}-byte frame buffer"),
+                    error: std::io::Error::new(std::io::ErrorKind::OutOfMemory, e.to_string()),
+                })?;
+            scratch.resize(bytes, 0);
+        }
         let info = SourceInfo {
             size: header.size,
             fps: if header.fps.1 == 0 {

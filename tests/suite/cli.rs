@@ -1190,6 +1190,11 @@ fn train_refuses_bad_options_and_outputs_before_reading_data() {
         ),
         (&["--select", "1.5"], 2, "--select 1.5: expected"),
         (
+            &["--lbp-threshold", "200"],
+            2,
+            "--lbp-threshold 200: expected a value in 0..=64",
+        ),
+        (
             &["--pets-stride", "0"],
             2,
             "--pets-stride 0: expected a value in 1..=600",
@@ -1698,6 +1703,24 @@ fn an_address_space_limit_refuses_frames_that_do_not_fit() {
             "{args}: {err}"
         );
     }
+    // A 4:4:4 stream's conversion buffer (768 MiB here) is allocated when
+    // the source opens, before that check: refused the same way (before:
+    // abort).
+    let c444 = dir.join("huge444.y4m");
+    std::fs::write(&c444, b"YUV4MPEG2 W16384 H16384 F25:1 C444\n").unwrap();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 524288 && exec {} run --source y4m:{}",
+            stature_bin(),
+            c444.display()
+        ))
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("frame buffer"), "{err}");
 }
 
 /// An MQTT `ca=` path naming a FIFO is refused at start-up, by `run` and
