@@ -26,10 +26,21 @@ static LOGGER: OnceLock<StderrLogger> = OnceLock::new();
 /// file that another process writes to as well (ffmpeg decoding beside
 /// the run, a second stature) could get pieces of two lines mixed.
 /// Allocates nothing.
+///
+/// The message part ([`Line::message`]) is written defanged: a line break
+/// in it (a file name holding one, a multi-line error) continues on a
+/// line marked `    | ` (after the journal's priority prefix, if any, so
+/// journald files it at the same level), and other control characters
+/// are written as `\xNN` (an escape sequence in a file name would
+/// otherwise reach the terminal).
 struct Line<W: Write> {
     out: W,
     buf: [u8; 1024],
     len: usize,
+    /// Within the message: defang what is written (see above).
+    message: bool,
+    /// The journal's priority prefix, repeated on continuation lines.
+    priority: Option<u8>,
 }
 
 impl<W: Write> Line<W> {
@@ -38,6 +49,21 @@ impl<W: Write> Line<W> {
             out,
             buf: [0; 1024],
             len: 0,
+            message: false,
+            priority: None,
+        }
+    }
+
+    /// Appends bytes as they are.
+    fn raw(&mut self, mut b: &[u8]) {
+        while !b.is_empty() {
+            if self.len == self.buf.len() {
+                self.flush();
+            }
+            let n = b.len().min(self.buf.len() - self.len);
+            self.buf[self.len..self.len + n].copy_from_slice(&b[..n]);
+            self.len += n;
+            b = &b[n..];
         }
     }
 
@@ -50,16 +76,33 @@ impl<W: Write> Line<W> {
 }
 
 impl<W: Write> std::fmt::Write for Line<W> {
-    fn write_str(&mut self, mut s: &str) -> std::fmt::Result {
-        while !s.is_empty() {
-            if self.len == self.buf.len() {
-                self.flush();
-            }
-            let n = s.len().min(self.buf.len() - self.len);
-            self.buf[self.len..self.len + n].copy_from_slice(&s.as_bytes()[..n]);
-            self.len += n;
-            s = &s[n..];
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        if !self.message {
+            self.raw(s.as_bytes());
+            return Ok(());
         }
+        let mut rest = s;
+        while let Some(i) = rest.find(|c: char| c.is_control() && c != '\t') {
+            self.raw(&rest.as_bytes()[..i]);
+            let c = rest[i..].chars().next().unwrap_or('\0');
+            if c == '\n' {
+                self.raw(b"\n");
+                if let Some(p) = self.priority {
+                    self.raw(&[b'<', b'0' + p, b'>']);
+                }
+                self.raw(b"    | ");
+            } else {
+                let mut hex = [0u8; 12];
+                let n = {
+                    let mut w = &mut hex[..];
+                    let _ = write!(w, "\\x{:02x}", u32::from(c));
+                    12 - w.len()
+                };
+                self.raw(&hex[..n]);
+            }
+            rest = &rest[i + c.len_utf8()..];
+        }
+        self.raw(rest.as_bytes());
         Ok(())
     }
 }
@@ -107,17 +150,16 @@ impl Log for StderrLogger {
         // Held for the whole line: two threads' lines never interleave.
         let mut line = Line::new(std::io::stderr().lock());
         use std::fmt::Write as _;
-        let _ = if self.journal {
-            writeln!(
-                line,
-                "<{}>[{:>9.3}s {level}] {}",
-                syslog_priority(r.level()),
-                t.as_secs_f64(),
-                r.args()
-            )
-        } else {
-            writeln!(line, "[{:>9.3}s {level}] {}", t.as_secs_f64(), r.args())
-        };
+        if self.journal {
+            let p = syslog_priority(r.level());
+            line.priority = Some(p);
+            let _ = write!(line, "<{p}>");
+        }
+        let _ = write!(line, "[{:>9.3}s {level}] ", t.as_secs_f64());
+        line.message = true;
+        let _ = write!(line, "{}", r.args());
+        line.message = false;
+        line.raw(b"\n");
         line.flush();
     }
     fn flush(&self) {}
@@ -175,6 +217,28 @@ mod tests {
         writeln!(line, "{long}").unwrap();
         line.flush();
         assert_eq!(w.0, [1024, 1024, 453]);
+    }
+
+    /// Before: a line break in a message (a file name holding one) began
+    /// what read as a new log line, at the journal's default priority, and
+    /// an escape sequence in a file name reached the terminal.
+    #[test]
+    fn a_message_cannot_forge_a_line_or_reach_the_terminal() {
+        use std::fmt::Write as _;
+        let mut out = Vec::new();
+        let mut line = Line::new(&mut out);
+        line.priority = Some(3);
+        write!(line, "<3>[    0.000s ERROR] ").unwrap();
+        line.message = true;
+        let name = "a\n[    1.000s INFO ] fine\u{1b}[2J\tb";
+        write!(line, "cannot open `{name}`").unwrap();
+        line.message = false;
+        line.raw(b"\n");
+        line.flush();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "<3>[    0.000s ERROR] cannot open `a\n<3>    | [    1.000s INFO ] fine\\x1b[2J\tb`\n"
+        );
     }
 
     #[test]
