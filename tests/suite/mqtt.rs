@@ -1326,4 +1326,13 @@ fn a_signal_during_the_wait_for_an_absent_broker_still_sums_up_the_run() {
         rest.contains("20 frames, stopped by frame limit") && rest.contains("were not delivered"),
         "{log}{rest}"
     );
+    // The line naming the broker comes before the first failure to reach it.
+    let (named, refused) = (
+        log.find("mqtt: publishing to"),
+        log.find("mqtt: cannot connect"),
+    );
+    assert!(
+        named.is_some() && refused.is_some() && named < refused,
+        "{log}"
+    );
 }

@@ -185,9 +185,8 @@ impl MqttSink {
             discovery: disc.into_iter().map(|d| d.payload).collect(),
             settings: settings.clone(),
         };
-        std::thread::Builder::new()
-            .name("stature-mqtt".into())
-            .spawn(move || thread.run(connection))?;
+        // Said before the connector starts, so that its first error (an
+        // absent broker) follows the line naming the broker, not precedes it.
         log::info!(
             "mqtt: publishing to {} under {}/ (client id {}{})",
             settings.broker(),
@@ -195,6 +194,9 @@ impl MqttSink {
             settings.client_id,
             if settings.tls { ", TLS" } else { "" }
         );
+        std::thread::Builder::new()
+            .name("stature-mqtt".into())
+            .spawn(move || thread.run(connection))?;
         Ok(MqttSink {
             shared,
             client,
