@@ -452,6 +452,16 @@ fn write_after_fragment<W: Write>(w: &mut W, torn: &mut bool, bytes: &[u8]) -> i
 /// before the record is dropped.
 const SERIAL_TIMEOUT: Duration = Duration::from_millis(200);
 
+/// Whether `file` is the null device (the same character device as
+/// `/dev/null`).
+fn is_dev_null(file: &std::fs::File) -> bool {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    match (file.metadata(), std::fs::metadata("/dev/null")) {
+        (Ok(f), Ok(null)) => f.file_type().is_char_device() && f.rdev() == null.rdev(),
+        _ => false,
+    }
+}
+
 impl Sink {
     /// Opens the sink (at start-up: resolving names and opening files may
     /// allocate). An `mqtt:` sink takes the default `[report.mqtt]` settings;
@@ -471,7 +481,17 @@ impl Sink {
                     .as_fd()
                     .try_clone_to_owned()
                     .map_err(|e| io::Error::new(e.kind(), format!("standard output: {e}")))?;
-                Sink::Stdout(FileSink::new(std::fs::File::from(fd), "stdout".into()))
+                let file = std::fs::File::from(fd);
+                if is_dev_null(&file) {
+                    // A service unit or a shell that closed standard output
+                    // (`>&-`) leaves /dev/null there (the runtime reopens a
+                    // closed fd 1 on it): every record would "arrive".
+                    log::warn!(
+                        "report sink stdout: standard output is /dev/null (redirected there, or \
+                         closed), so the records written to it are discarded"
+                    );
+                }
+                Sink::Stdout(FileSink::new(file, "stdout".into()))
             }
             SinkSpec::File(p) => Sink::File(FileSink::new(
                 open_report_file(p).map_err(|e| file_error(p, e))?,

@@ -127,6 +127,39 @@ fn frame_limit_stops_early_with_bye() {
     assert_eq!(recs.last().unwrap()["frames"], 7);
 }
 
+/// Standard output closed (`>&-`) or sent to /dev/null: the runtime puts
+/// /dev/null at fd 1, so a `stdout` sink "delivers" every record to
+/// nowhere. The run says so (and goes on: a benchmark may mean it); with
+/// a pipe there it says nothing of the kind.
+#[test]
+fn a_stdout_sink_on_dev_null_is_named_in_a_warning() {
+    let dir = common::fresh_dir("cli-a_stdout_sink_on_dev_null_is_named_in_a_warning");
+    let clip = write_clip(&dir, "c.y4m", 3);
+    let source = format!("y4m:{}", clip.display());
+    let warning = "standard output is /dev/null";
+    let closed = Command::new("sh")
+        .arg("-c")
+        .arg("exec \"$0\" run --source \"$1\" --report stdout >&-")
+        .arg(stature_bin())
+        .arg(&source)
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&closed.stderr);
+    assert!(closed.status.success(), "{log}");
+    assert!(log.contains(warning), "{log}");
+    let null = Command::new(stature_bin())
+        .args(["run", "--source", &source, "--report", "stdout"])
+        .stdout(Stdio::null())
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&null.stderr);
+    assert!(null.status.success() && log.contains(warning), "{log}");
+    let piped = run(&["run", "--source", &source, "--report", "stdout"]);
+    let log = String::from_utf8_lossy(&piped.stderr);
+    assert!(piped.status.success() && !log.contains(warning), "{log}");
+    assert_eq!(records(&piped.stdout).last().unwrap()["type"], "bye");
+}
+
 #[test]
 fn truncated_stream_is_exit_2_with_frame_and_offset_and_final_records() {
     let dir =
@@ -1115,8 +1148,10 @@ fn log_lines_carry_syslog_priorities_when_stderr_is_the_journal() {
         let log = std::fs::File::create(&log_path).unwrap();
         let meta = log.metadata().unwrap();
         let mut cmd = Command::new(stature_bin());
+        // Records to a file: /dev/null there would add a warning line.
+        let out = std::fs::File::create(dir.join("out.jsonl")).unwrap();
         cmd.args(["run", "--source", source])
-            .stdout(Stdio::null())
+            .stdout(out)
             .stderr(log);
         if journal {
             cmd.env("JOURNAL_STREAM", format!("{}:{}", meta.dev(), meta.ino()));
