@@ -1135,7 +1135,9 @@ fn sim_cmd(a: SimArgs) -> i32 {
         if a.annotate {
             export::annotate(&mut rgb, &sim);
         }
-        let written = std::fs::File::create(path).and_then(|f| {
+        let created =
+            std::fs::File::create(path).map_err(|e| stature::replace::name_missing_dir(path, e));
+        let written = created.and_then(|f| {
             let mut w = std::io::BufWriter::new(f);
             export::write_png(&mut w, &rgb, spec.width, spec.height)?;
             w.flush()
@@ -1233,7 +1235,8 @@ impl SimOutput {
             .write(true)
             .create(true)
             .truncate(false)
-            .open(path)?;
+            .open(path)
+            .map_err(|e| stature::replace::name_missing_dir(path, e))?;
         Ok(SimOutput::File {
             file,
             path: path.to_path_buf(),

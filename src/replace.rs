@@ -66,6 +66,24 @@ pub fn dir_of(path: &Path) -> &Path {
     }
 }
 
+/// `e`, the failure to create `path`, or, when it failed because the
+/// directory `path` would go in does not exist, an error that says so:
+/// "No such file or directory" alone reads as if the file itself were
+/// expected to be there (an installer who forgot `mkdir /var/lib/stature`).
+pub fn name_missing_dir(path: &Path, e: io::Error) -> io::Error {
+    let dir = dir_of(path);
+    let missing = e.kind() == io::ErrorKind::NotFound
+        && std::fs::metadata(dir).is_err_and(|m| m.kind() == io::ErrorKind::NotFound);
+    if missing {
+        io::Error::new(
+            e.kind(),
+            format!("directory {} does not exist", dir.display()),
+        )
+    } else {
+        e
+    }
+}
+
 /// `PATH.stature-tmp`: the temporary file beside `path`.
 pub fn tmp_beside(path: &Path) -> PathBuf {
     let mut tmp = path.as_os_str().to_owned();
@@ -192,6 +210,7 @@ pub(crate) fn lock_at(path: &Path, access: rustix::fs::OFlags) -> io::Result<Loc
         if std::fs::symlink_metadata(path).is_ok_and(|m| !m.is_file()) {
             return io::Error::new(e.kind(), not_regular());
         }
+        let e = name_missing_dir(path, e);
         io::Error::new(e.kind(), format!("cannot create {}: {e}", path.display()))
     };
     for _ in 0..4 {

@@ -694,7 +694,7 @@ pub fn check_local(spec: &SinkSpec) -> io::Result<()> {
                     crate::replace::dir_of(&target),
                     Access::WRITE_OK | Access::EXEC_OK,
                 )
-                .map_err(|e| named(e.into())),
+                .map_err(|e| named(crate::replace::name_missing_dir(&target, e.into()))),
             }
         }
         SinkSpec::Serial { path, .. } => {
@@ -759,7 +759,7 @@ fn open_report_file(path: &str) -> io::Result<std::fs::File> {
                     "it is a FIFO that nothing reads: start the reader first",
                 )
             } else {
-                e
+                crate::replace::name_missing_dir(std::path::Path::new(path), e)
             }
         })
 }

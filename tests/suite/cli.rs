@@ -229,7 +229,8 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "/nonexistent-dir/x.state".into(),
             ],
             3,
-            "cannot create /nonexistent-dir/x.state.stature-lock",
+            // The directory, not the file, is what is missing.
+            "cannot create /nonexistent-dir/x.state.stature-lock: directory /nonexistent-dir does not exist",
         ),
         (
             vec!["--config".into(), both_scales.display().to_string()],
@@ -324,7 +325,7 @@ fn bad_inputs_give_one_clear_line_and_the_right_exit_code() {
                 "file:/nonexistent-dir/x.jsonl".into(),
             ],
             3,
-            "report file",
+            "report file `/nonexistent-dir/x.jsonl`: directory /nonexistent-dir does not exist",
         ),
         // URL-style `//` (before: a confusing "expected mqtt:HOST.." for
         // MQTT, and a UDP destination `//127.0.0.1:9000` that failed to
@@ -916,7 +917,10 @@ fn unwritable_snapshot_path_is_exit_3_before_the_run_starts() {
     let dir = common::fresh_dir("cli-unwritable_snapshot_path_is_exit_3_before_the_run_starts");
     let clip = write_clip(&dir, "snap.y4m", 3);
     for (path, want) in [
-        ("/nonexistent-dir/x.png".to_string(), "No such file"),
+        (
+            "/nonexistent-dir/x.png".to_string(),
+            "directory /nonexistent-dir does not exist",
+        ),
         (dir.display().to_string(), "it is a directory"),
     ] {
         let out = run(&[
@@ -1253,7 +1257,7 @@ fn train_refuses_bad_options_and_outputs_before_reading_data() {
         (
             &["--out", "/nonexistent-dir/w.bin"],
             3,
-            "--out /nonexistent-dir/w.bin: cannot create /nonexistent-dir/w.bin.stature-tmp",
+            "--out /nonexistent-dir/w.bin: cannot create /nonexistent-dir/w.bin.stature-tmp: directory /nonexistent-dir does not exist",
         ),
         (
             &["--out", "/dev/full"],
@@ -1478,7 +1482,7 @@ fn sim_opens_every_output_before_emptying_one() {
         (
             &["--out", &clip_s, "--truth", "/nonexistent-dir/t.json"],
             3,
-            "--truth /nonexistent-dir/t.json: No such file",
+            "--truth /nonexistent-dir/t.json: directory /nonexistent-dir does not exist",
         ),
         (
             &["--out", &new, "--truth", "/nonexistent-dir/t.json"],
@@ -1576,15 +1580,15 @@ fn config_check_refuses_what_run_would_refuse_at_start() {
         ),
         (
             "[run]\nstate = \"/nonexistent-dir/x.state\"\n",
-            "calibration state /nonexistent-dir/x.state: cannot create",
+            "calibration state /nonexistent-dir/x.state: cannot create /nonexistent-dir/x.state.stature-lock: directory /nonexistent-dir does not exist",
         ),
         (
             "[run]\nsnapshot = \"/nonexistent-dir/x.png\"\n",
-            "cannot write snapshot /nonexistent-dir/x.png",
+            "cannot write snapshot /nonexistent-dir/x.png: cannot create /nonexistent-dir/x.png.stature-tmp: directory /nonexistent-dir does not exist",
         ),
         (
             "[report]\nsinks = [\"file:/nonexistent-dir/r.jsonl\"]\n",
-            "report file `/nonexistent-dir/r.jsonl`: No such file or directory",
+            "report file `/nonexistent-dir/r.jsonl`: directory /nonexistent-dir does not exist",
         ),
         (
             "[report]\nsinks = [\"serial:/nonexistent-dir/ttyS9?baud=9600\"]\n",
