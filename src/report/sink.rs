@@ -758,8 +758,14 @@ fn open_report_file(path: &str) -> io::Result<std::fs::File> {
                     e.kind(),
                     "it is a FIFO that nothing reads: start the reader first",
                 )
+            } else if e.kind() == io::ErrorKind::NotFound {
+                // Through a link, the missing directory is the target's
+                // (as `config --check` names it).
+                let path = std::path::Path::new(path);
+                let target = crate::replace::follow_links(path).map(|(t, _)| t);
+                crate::replace::name_missing_dir(target.as_deref().unwrap_or(path), e)
             } else {
-                crate::replace::name_missing_dir(std::path::Path::new(path), e)
+                e
             }
         })
 }
@@ -1172,7 +1178,12 @@ mod tests {
         std::os::unix::fs::symlink(dir.join("nodir/x.jsonl"), dir.join("into-nothing")).unwrap();
         std::os::unix::fs::symlink("later.jsonl", dir.join("later-link")).unwrap();
         let e = check(format!("file:{d}/into-nothing")).unwrap_err();
-        assert!(e.contains("No such file or directory"), "{e}");
+        let missing = format!("directory {d}/nodir does not exist");
+        assert!(e.contains(&missing), "{e}");
+        // The run's open says the same (the link's target's directory).
+        let spec = SinkSpec::parse(&format!("file:{d}/into-nothing")).unwrap();
+        let e = Sink::open(&spec).err().unwrap().to_string();
+        assert!(e.contains(&missing), "{e}");
         assert_eq!(check(format!("file:{d}/later-link")), Ok(()));
         let e = check(format!("file:{d}/new/")).unwrap_err();
         assert!(e.contains("Is a directory"), "{e}");
