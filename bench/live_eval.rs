@@ -524,6 +524,10 @@ fn run(scene: &str, seed: u64, frames: Option<u64>, extra: &str, toml: &str) {
         "  recall of people seen >= 3 s alone (no other person's box touching theirs): {}/{}",
         hs.measured_alone, hs.eligible_alone
     );
+    println!(
+        "  recall of people seen >= 3 s walking (not standing still): {}/{}",
+        hs.measured_walking, hs.eligible_walking
+    );
     if std::env::var("MISSES").is_ok() {
         recall_misses(&run);
     }

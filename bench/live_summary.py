@@ -24,6 +24,7 @@ FIN = re.compile(
     r"recall \(seen >= 3 s\) (\d+)/(\d+); dog/car heights (\d+)"
 )
 ALONE = re.compile(r"recall of people seen >= 3 s alone .*: (\d+)/(\d+)")
+WALKING = re.compile(r"recall of people seen >= 3 s walking[^:]*: (\d+)/(\d+)")
 
 
 def pct(v, q):
@@ -54,6 +55,9 @@ def summarise(path):
         m = ALONE.search(line)
         if m:
             cur["measured_alone"], cur["eligible_alone"] = int(m[1]), int(m[2])
+        m = WALKING.search(line)
+        if m:
+            cur["measured_walking"], cur["eligible_walking"] = int(m[1]), int(m[2])
     est = [r for r in runs if "est" in r]
     fe = [100.0 * (r["est"][0] / r["f"] - 1.0) for r in est]
     te = [abs(r["est"][1] - r["tilt"]) for r in est]
@@ -85,6 +89,11 @@ def summarise(path):
         print(
             f"  recall of people seen alone {sum(r.get('measured_alone', 0) for r in runs)}/"
             f"{sum(r.get('eligible_alone', 0) for r in runs)}"
+        )
+    if any("eligible_walking" in r for r in runs):
+        print(
+            f"  recall of people seen walking {sum(r.get('measured_walking', 0) for r in runs)}/"
+            f"{sum(r.get('eligible_walking', 0) for r in runs)}"
         )
 
 

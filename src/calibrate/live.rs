@@ -59,6 +59,9 @@ pub struct LiveRun {
     /// Of those, frames in which no other visible person's box touched
     /// theirs (apart: a background model can cut them out on their own).
     pub alone_frames: BTreeMap<u32, u64>,
+    /// Frames each person was counted in [`LiveRun::seen_frames`] while
+    /// walking (the sim's truth: not standing still).
+    pub walking_frames: BTreeMap<u32, u64>,
     /// True standing height of every person of the cast.
     pub true_heights: BTreeMap<u32, f64>,
     /// How full the loop's tables were at the end (and what they lost).
@@ -93,6 +96,7 @@ pub fn run_sim(
     let mut observations = Vec::new();
     let mut seen_frames: BTreeMap<u32, u64> = BTreeMap::new();
     let mut alone_frames: BTreeMap<u32, u64> = BTreeMap::new();
+    let mut walking_frames: BTreeMap<u32, u64> = BTreeMap::new();
     for k in 0..sim.frames() {
         sim.render(k, &mut p.frame);
         p.process(&mut reporter);
@@ -106,6 +110,9 @@ pub fn run_sim(
                 && b[3] < h - 3.0
             {
                 *seen_frames.entry(o.id).or_default() += 1;
+                if o.walking {
+                    *walking_frames.entry(o.id).or_default() += 1;
+                }
                 let alone = sim.truth().iter().all(|q| {
                     q.id == o.id
                         || q.kind != Kind::Person
@@ -168,6 +175,7 @@ pub fn run_sim(
         final_heights: std::mem::take(&mut p.final_heights),
         seen_frames,
         alone_frames,
+        walking_frames,
         true_heights,
         occupancy,
         reid_splits,
@@ -215,6 +223,12 @@ pub struct HeightScore {
     pub eligible_alone: usize,
     /// Of them, people with a final height.
     pub measured_alone: usize,
+    /// People seen like that for at least 3 s while walking
+    /// ([`LiveRun::walking_frames`]): a background model cannot find someone
+    /// who never moves.
+    pub eligible_walking: usize,
+    /// Of them, people with a final height.
+    pub measured_walking: usize,
     /// Final heights whose track was mostly a dog or a car.
     pub non_person: usize,
 }
@@ -303,6 +317,7 @@ impl LiveRun {
         };
         let (eligible, measured) = recall(&self.seen_frames);
         let (eligible_alone, measured_alone) = recall(&self.alone_frames);
+        let (eligible_walking, measured_walking) = recall(&self.walking_frames);
         HeightScore {
             records: pairs.len(),
             people: people.len(),
@@ -315,6 +330,8 @@ impl LiveRun {
             eligible,
             measured_alone,
             eligible_alone,
+            measured_walking,
+            eligible_walking,
             non_person,
         }
     }
