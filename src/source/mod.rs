@@ -217,16 +217,29 @@ fn parse(uri: &str) -> Result<Spec<'_>, SourceError> {
             sim::scene_named(path)?,
             sim::SimOptions::parse(query)?,
         )),
-        // A bare path: say which URI it likely meant.
-        _ if !uri.contains(':') && uri.contains('/') => {
+        // No scheme at all: say which URI it likely meant (a file name,
+        // standard input, a camera device, a scene name).
+        _ if !uri.contains(':') => {
+            let looks_like_file = uri == "-"
+                || uri.contains('/')
+                || std::path::Path::new(uri)
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("y4m"));
             let meant = if uri.starts_with("/dev/video") {
-                "v4l2"
+                Some("v4l2")
+            } else if looks_like_file {
+                Some("y4m")
+            } else if sim::scene_named(uri).is_ok() {
+                Some("sim")
             } else {
-                "y4m"
+                None
             };
-            Err(SourceError::Spec(format!(
-                "`{uri}` has no scheme: write `{meant}:{uri}`"
-            )))
+            Err(SourceError::Spec(match meant {
+                Some(m) => format!("`{uri}` has no scheme: write `{m}:{uri}`"),
+                None => {
+                    format!("`{uri}` has no scheme (expected y4m:FILE, v4l2:DEVICE or sim:SCENE)")
+                }
+            }))
         }
         _ => Err(SourceError::Spec(format!(
             "`{uri}`: unknown scheme `{scheme}` (expected y4m, v4l2 or sim)"
@@ -334,6 +347,18 @@ mod tests {
         assert!(e.contains("write `v4l2:/dev/video0`"), "{e}");
         let e = check("rtsp://cam").unwrap_err().to_string();
         assert!(e.contains("unknown scheme `rtsp`"), "{e}");
+        // Before: "unknown scheme `clip.y4m`" for a file in the working
+        // directory, and the same for standard input.
+        let e = check("clip.y4m").unwrap_err().to_string();
+        assert!(e.contains("write `y4m:clip.y4m`"), "{e}");
+        let e = check("CLIP.Y4M").unwrap_err().to_string();
+        assert!(e.contains("write `y4m:CLIP.Y4M`"), "{e}");
+        let e = check("-").unwrap_err().to_string();
+        assert!(e.contains("write `y4m:-`"), "{e}");
+        let e = check("plaza").unwrap_err().to_string();
+        assert!(e.contains("write `sim:plaza`"), "{e}");
+        let e = check("clip").unwrap_err().to_string();
+        assert!(e.contains("`clip` has no scheme (expected y4m:FILE"), "{e}");
     }
 
     /// Before: "y4m takes no options" for a file named `a?b.y4m`.

@@ -186,8 +186,17 @@ impl<R: Read + AsFd> Read for StopOnSignal<R> {
             }
             let mut fds = [PollFd::new(&self.inner, PollFlags::IN)];
             match poll(&mut fds, Some(&timeout)) {
-                // Readable, at end (HUP) or in error: `read` says which.
-                Ok(n) if n > 0 => return self.inner.read(buf),
+                // Readable, at end (HUP) or in error: `read` says which,
+                // unless a stop came meanwhile. A signal that lands on
+                // another thread does not interrupt this `poll`, and a
+                // writer that closes at that moment would make the read
+                // report an end (an "empty stream") where the user stopped.
+                Ok(n) if n > 0 => {
+                    if self.stop.load(Ordering::Relaxed) {
+                        return Err(io::ErrorKind::TimedOut.into());
+                    }
+                    return self.inner.read(buf);
+                }
                 Ok(_) | Err(rustix::io::Errno::INTR) => {}
                 Err(e) => return Err(e.into()),
             }
@@ -304,6 +313,10 @@ impl Y4mSource {
         let mut line = Vec::with_capacity(MAX_LINE);
         let n = read_line(&mut reader, &mut line)
             .map_err(|error| SourceError::Io { frame: 0, error })?;
+        if n == 0 && stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed)) {
+            // A stop and the writer's close came together.
+            return Err(SourceError::Stopped);
+        }
         if n == 0 {
             return Err(SourceError::Format {
                 frame: 0,
@@ -312,10 +325,15 @@ impl Y4mSource {
             });
         }
         if line.last() != Some(&b'\n') {
+            let what = if n >= MAX_LINE {
+                format!("header line longer than {MAX_LINE} bytes")
+            } else {
+                "header line not terminated (the stream ends inside it)".into()
+            };
             return Err(SourceError::Format {
                 frame: 0,
                 offset: n as u64,
-                what: "header line not terminated".into(),
+                what,
             });
         }
         let header = Header::parse(&line[..n - 1]).map_err(|what| SourceError::Format {
@@ -482,7 +500,7 @@ impl Y4mSource {
             )));
         }
         if self.line.last() != Some(&b'\n') {
-            return Err(self.fail("frame header line not terminated".into()));
+            return Err(self.fail(format!("frame header line longer than {MAX_LINE} bytes")));
         }
         self.offset += n as u64;
         let size = self.header.size;
@@ -670,6 +688,48 @@ mod tests {
             let e = source(h.as_bytes().to_vec()).err().expect(h).to_string();
             assert!(e.contains(want), "{h:?}: {e}");
         }
+        // Before: "not terminated" for a line that is, only too long.
+        let long = format!("YUV4MPEG2 W4 H2 F25:1 {}\n", "X".repeat(200_000));
+        let e = source(long.into_bytes()).err().unwrap().to_string();
+        assert!(e.contains("header line longer than 4096 bytes"), "{e}");
+        let mut bytes = b"YUV4MPEG2 W4 H2 F25:1 C420\nFRAME ".to_vec();
+        bytes.extend(std::iter::repeat_n(b'X', 5000));
+        bytes.push(b'\n');
+        let mut s = source(bytes).unwrap();
+        let e = s
+            .next_frame(&mut Frame::new(s.info().size))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("frame header line longer than 4096 bytes"),
+            "{e}"
+        );
+    }
+
+    /// Before: a stop that came while the writer closed the pipe was
+    /// read as the stream's end ("empty stream", exit code 2) about once in
+    /// twelve tries, when the signal landed on another thread.
+    #[test]
+    fn a_stop_beside_a_closed_pipe_is_a_stop_not_an_empty_stream() {
+        // The read got past the flag check before the stop and found the
+        // writer gone: the end of the pipe, with the flag set by then.
+        let stop = Arc::new(AtomicBool::new(true));
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(writer);
+        let r =
+            Y4mSource::from_reader_stoppable(Box::new(reader), "pipe".into(), Some(stop.clone()));
+        assert!(matches!(r, Err(SourceError::Stopped)), "{:?}", r.err());
+        // With no stop, the same pipe is an empty stream.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(writer);
+        stop.store(false, Ordering::Relaxed);
+        let r = Y4mSource::from_reader_stoppable(
+            stoppable(reader, &Some(stop.clone())),
+            "pipe".into(),
+            Some(stop),
+        );
+        let e = r.err().unwrap().to_string();
+        assert!(e.contains("empty stream"), "{e}");
     }
 
     #[test]

@@ -119,6 +119,23 @@ impl SimOptions {
     }
 }
 
+/// The URI that opens the same clip again: every option that was given
+/// (the report's `hello` record and the log carry it, so a run can be
+/// reproduced from its records alone).
+fn describe(scene: &str, opts: &SimOptions, frames: u64) -> String {
+    let mut d = format!("sim:{scene}?seed={}&frames={frames}", opts.seed);
+    if opts.empty {
+        d.push_str("&empty=1");
+    }
+    if let Some(s) = opts.shadows {
+        d.push_str(if s { "&shadows=1" } else { "&shadows=0" });
+    }
+    if let Some(n) = opts.noise {
+        d.push_str(&format!("&noise={n}"));
+    }
+    d
+}
+
 /// Renders a named scene frame by frame, with its ground truth.
 pub struct SimSource {
     info: SourceInfo,
@@ -179,7 +196,7 @@ impl SimSource {
                 height: spec.height,
             },
             fps: (spec.fps, 1),
-            description: format!("sim:{}?seed={}&frames={}", spec.name, opts.seed, frames),
+            description: describe(spec.name, opts, frames),
         };
         SimSource {
             info,
@@ -407,5 +424,45 @@ impl FrameSource for SimSource {
         self.render(k, frame);
         self.next += 1;
         Ok(Next::Frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Before: `empty`, `shadows` and `noise` were left out of the
+    /// description, so the `hello` record named a different clip.
+    #[test]
+    fn the_description_reopens_the_same_clip() {
+        for query in [
+            "",
+            "seed=7",
+            "seed=3&frames=40&empty=1",
+            "shadows=0&noise=5",
+            "shadows=1&noise=2.5&seed=9",
+        ] {
+            let opts = SimOptions::parse(query).unwrap();
+            let d = describe("plaza", &opts, 40);
+            let (scheme, name, q) = crate::source::split_uri(&d).unwrap();
+            assert_eq!((scheme, name), ("sim", "plaza"), "{d}");
+            let again = SimOptions::parse(q).unwrap();
+            assert_eq!(
+                again,
+                SimOptions {
+                    frames: Some(40),
+                    ..opts
+                },
+                "{query} -> {d}"
+            );
+        }
+        assert_eq!(
+            describe(
+                "low",
+                &SimOptions::parse("noise=5&shadows=0&empty=1").unwrap(),
+                3
+            ),
+            "sim:low?seed=1&frames=3&empty=1&shadows=0&noise=5"
+        );
     }
 }
