@@ -419,22 +419,27 @@ impl Config {
         specs: &[crate::report::sink::SinkSpec],
     ) -> Result<(), ConfigError> {
         use crate::report::sink::SinkSpec;
-        let mut outputs: Vec<(&str, &str)> = Vec::new();
+        // (key, the value as the user wrote it, the path)
+        let mut outputs: Vec<(&str, String, &str)> = Vec::new();
         if !self.run.state.is_empty() {
-            outputs.push(("run.state", &self.run.state));
+            outputs.push(("run.state", self.run.state.clone(), &self.run.state));
         }
         if !self.run.snapshot.is_empty() {
-            outputs.push(("run.snapshot", &self.run.snapshot));
+            outputs.push((
+                "run.snapshot",
+                self.run.snapshot.clone(),
+                &self.run.snapshot,
+            ));
         }
         for spec in specs {
             if let SinkSpec::File(path) = spec {
-                outputs.push(("report.sinks", path));
+                outputs.push(("report.sinks", format!("file:{path}"), path));
             }
         }
-        let ids: Vec<FileId> = outputs.iter().map(|(_, p)| FileId::of_path(p)).collect();
+        let ids: Vec<FileId> = outputs.iter().map(|(_, _, p)| FileId::of_path(p)).collect();
         for (i, id) in ids.iter().enumerate() {
             if let Some(j) = ids[..i].iter().position(|e| e == id) {
-                let (key, value) = outputs[i];
+                let (key, value, _) = &outputs[i];
                 let other = match outputs[j].0 {
                     "report.sinks" => "a report.sinks file",
                     k => k,
@@ -478,7 +483,7 @@ impl Config {
                 inputs.push((what, "every record would be written to it twice", id));
             }
         }
-        for ((key, value), id) in outputs.iter().zip(&ids) {
+        for ((key, value, _), id) in outputs.iter().zip(&ids) {
             if let Some((what, why, _)) = inputs.iter().find(|(_, _, i)| i == id) {
                 return Err(ConfigError::invalid(
                     key,

@@ -97,7 +97,7 @@ impl SinkSpec {
             "file" if rest.is_empty() => Err("expected file:PATH".into()),
             "file" => Ok(SinkSpec::File(rest.into())),
             "udp" => {
-                let (_, port) = rest
+                let (host, port) = rest
                     .rsplit_once(':')
                     .filter(|(h, p)| !h.is_empty() && !p.is_empty())
                     .ok_or("expected udp:HOST:PORT")?;
@@ -106,6 +106,7 @@ impl SinkSpec {
                         "port `{port}` is not in 1..=65535 (expected udp:HOST:PORT)"
                     ));
                 }
+                udp_host_syntax(host)?;
                 Ok(SinkSpec::Udp(rest.into()))
             }
             "serial" => {
@@ -525,6 +526,10 @@ impl Sink {
                 Sink::Udp(sock, dest)
             }
             SinkSpec::Serial { path, baud } => {
+                // The check first: it names what the path is (`/dev/null`:
+                // "a mem device") where the open would say only "Not a
+                // typewriter", and it opens nothing that is not a port.
+                check_local(spec)?;
                 let port = serialport::new(path, *baud)
                     .timeout(SERIAL_TIMEOUT)
                     .open()
@@ -768,6 +773,38 @@ fn open_report_file(path: &str) -> io::Result<std::fs::File> {
                 e
             }
         })
+}
+
+/// A `udp:` host that no lookup could resolve, said as the user's typing
+/// mistake (exit code 2) rather than as a name the network did not know
+/// (exit code 3): an IPv6 address that is not in brackets or does not
+/// parse, or a name with characters no host name has.
+fn udp_host_syntax(host: &str) -> Result<(), String> {
+    if let Some(inner) = host.strip_prefix('[') {
+        let addr = inner.strip_suffix(']').ok_or_else(|| {
+            format!("`{host}`: an IPv6 address goes in brackets (expected udp:[ADDRESS]:PORT)")
+        })?;
+        // A link-local address may name its interface (`fe80::1%eth0`).
+        let ip = addr.split_once('%').map_or(addr, |(ip, _)| ip);
+        return ip
+            .parse::<std::net::Ipv6Addr>()
+            .map(drop)
+            .map_err(|_| format!("`{addr}` is not an IPv6 address (expected udp:[ADDRESS]:PORT)"));
+    }
+    if host.contains(':') {
+        return Err(format!(
+            "`{host}`: an IPv6 address goes in brackets (expected udp:[ADDRESS]:PORT)"
+        ));
+    }
+    match host
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '_')))
+    {
+        Some(c) => Err(format!(
+            "host `{host}` holds {c:?}, which no host name or address does (expected udp:HOST:PORT)"
+        )),
+        None => Ok(()),
+    }
 }
 
 /// The addresses of a `udp:` destination `HOST:PORT`. A bracketed IPv6
@@ -1017,6 +1054,27 @@ mod tests {
             SinkSpec::parse("mqtt:broker:1883?topic=stature/cam1&qos=1"),
             Ok(SinkSpec::Mqtt(m)) if m.host == "broker" && m.port == Some(1883)
         ));
+        for ok in [
+            "udp:[::1]:9",
+            "udp:[fe80::1%eth0]:5000",
+            "udp:10.0.0.255:9",
+            "udp:collector.lan:9",
+            "udp:my_host-2:9",
+        ] {
+            assert!(SinkSpec::parse(ok).is_ok(), "{ok}");
+        }
+        // Before: a lookup error and exit code 3, as if the network had
+        // not known the name.
+        for (bad, why) in [
+            ("udp:[::1:5000", "goes in brackets"),
+            ("udp:::1:5000", "goes in brackets"),
+            ("udp:[::g]:5000", "is not an IPv6 address"),
+            ("udp:a b:5000", "holds ' '"),
+            ("udp:host/x:5000", "holds '/'"),
+        ] {
+            let e = SinkSpec::parse(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
         for bad in [
             "udp:host",
             "udp:host:0",
@@ -1196,6 +1254,10 @@ mod tests {
             ("/dev/tty", "not a serial device"),
         ] {
             let e = check(format!("serial:{port}?baud=9600")).unwrap_err();
+            assert!(e.contains(why), "{port}: {e}");
+            // The run's open says the same (it said "Not a typewriter").
+            let spec = SinkSpec::parse(&format!("serial:{port}?baud=9600")).unwrap();
+            let e = Sink::open(&spec).err().unwrap().to_string();
             assert!(e.contains(why), "{port}: {e}");
         }
         // A pseudo-terminal: no sysfs entry, and a serial port all the same.
