@@ -528,6 +528,10 @@ fn check_sinks(cfg: &Config) -> Result<(), Refused> {
                     stature::report::mqtt::MqttSettings::resolve(m, &cfg.report.mqtt, |k| {
                         std::env::var(k).ok()
                     });
+                settings.check_credentials().map_err(|e| Refused {
+                    message: format!("cannot open report sink: {e}"),
+                    code: exit::BAD_INPUT,
+                })?;
                 stature::report::mqtt::link::check_local(&settings).map_err(|e| refused(&e))?;
             }
             // Without MQTT support, opening refuses at once, as in `run`.
@@ -752,6 +756,20 @@ fn run_source(
     if specs.is_empty() {
         // Allowed (a run for its state file or snapshot), but rarely meant.
         log::warn!("no report sinks (report.sinks is empty): the run's records go nowhere");
+    }
+    // A password without a user name is a configuration mistake (exit
+    // code 2) wherever it came from: the file or the environment.
+    #[cfg(feature = "mqtt")]
+    for spec in &specs {
+        if let sink::SinkSpec::Mqtt(m) = spec {
+            let settings = stature::report::mqtt::MqttSettings::resolve(m, &cfg.report.mqtt, |k| {
+                std::env::var(k).ok()
+            });
+            if let Err(e) = settings.check_credentials() {
+                log::error!("cannot open report sink: {e}");
+                return exit::BAD_INPUT;
+            }
+        }
     }
     let mut sinks = Vec::new();
     for spec in &specs {

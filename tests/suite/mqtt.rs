@@ -928,6 +928,50 @@ fn config_file(dir: &Path, mqtt: &str) -> PathBuf {
     p
 }
 
+/// A password with no user name is a configuration mistake: exit code 2
+/// from `run` and `config --check`, as the README says (it was 3, the code
+/// of a broker that cannot be reached). No broker is needed: it is refused
+/// before any connection.
+#[test]
+fn a_password_without_a_user_name_is_bad_input() {
+    let dir = temp_dir("password-alone");
+    let conf = dir.join("stature.toml");
+    std::fs::write(
+        &conf,
+        "[report]\nsinks = [\"mqtt:127.0.0.1:9\"]\n\n[report.mqtt]\npassword = \"s3cret\"\n",
+    )
+    .unwrap();
+    let go = |args: &[&str], user: Option<&str>| {
+        let mut cmd = Command::new(common::stature_bin());
+        cmd.args(args)
+            .env_remove("STATURE_MQTT_USERNAME")
+            .env_remove("STATURE_MQTT_PASSWORD")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null());
+        if let Some(u) = user {
+            cmd.env("STATURE_MQTT_USERNAME", u);
+        }
+        cmd.output().unwrap()
+    };
+    let conf = conf.to_str().unwrap();
+    let run = ["run", "--config", conf, "--source", "sim:low?frames=1"];
+    for args in [&run[..], &["config", "--check", conf][..]] {
+        let out = go(args, None);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("without a user name"), "{args:?}: {err}");
+        assert!(
+            !err.contains("s3cret"),
+            "the password is never shown: {err}"
+        );
+    }
+    // The environment's user name makes it legal (the check connects to
+    // nothing, so no broker is needed).
+    let out = go(&["config", "--check", conf], Some("camera"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}
+
 #[test]
 fn wrong_credentials_are_reported_and_the_run_goes_on() {
     let Some(t) = tools(&[
