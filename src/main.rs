@@ -294,10 +294,10 @@ struct SimArgs {
     /// Write the clip as Y4M to this file (`-` for stdout).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Write the ground truth as JSON to this file.
+    /// Write the ground truth as JSON to this file (`-` for stdout).
     #[arg(long)]
     truth: Option<PathBuf>,
-    /// Write one frame as PNG to this file.
+    /// Write one frame as PNG to this file (`-` for stdout).
     #[arg(long)]
     png: Option<PathBuf>,
     /// Frame written by --png.
@@ -1129,6 +1129,27 @@ fn sim_cmd(a: SimArgs) -> i32 {
         frames: a.frames,
         ..SimOptions::default()
     };
+    // A Y4M clip or the truth JSON under a PNG's name (or the truth under a clip's)
+    // is a slip of the keyboard, refused like `--png x.y4m`.
+    for (option, path, wrong) in [
+        ("--out", &a.out, "png"),
+        ("--truth", &a.truth, "png"),
+        ("--truth", &a.truth, "y4m"),
+    ] {
+        if let Some(path) = path {
+            if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case(wrong))
+            {
+                say!(
+                    "error: {option} {}: a .{wrong} name for what is not {} (--out writes a Y4M clip, --truth JSON)",
+                    path.display(),
+                    if wrong == "png" { "a PNG" } else { "a Y4M clip" }
+                );
+                return exit::BAD_INPUT;
+            }
+        }
+    }
     let mut sim = SimSource::new(spec, &opts);
     let fail = |what: &dyn std::fmt::Display, e: std::io::Error| {
         say!("error: {what}: {e}");
@@ -1147,34 +1168,16 @@ fn sim_cmd(a: SimArgs) -> i32 {
             );
             return exit::BAD_INPUT;
         }
-        let mut frame = stature::frame::Frame::new(source::FrameSource::info(&sim).size);
-        sim.render(a.png_frame, &mut frame);
-        let mut rgb = export::to_rgb(&frame);
-        if a.annotate {
-            export::annotate(&mut rgb, &sim);
-        }
-        let created =
-            std::fs::File::create(path).map_err(|e| stature::replace::name_missing_dir(path, e));
-        let written = created.and_then(|f| {
-            let mut w = std::io::BufWriter::new(f);
-            export::write_png(&mut w, &rgb, spec.width, spec.height)?;
-            w.flush()
-        });
-        if let Err(e) = written {
-            return fail(&format_args!("--png {}", path.display()), e);
-        }
     }
-    if a.out.is_none() && a.truth.is_none() {
-        if a.png.is_none() {
-            say!("error: nothing to do: give --out, --truth, --png or --list");
-            return exit::BAD_INPUT;
-        }
-        return exit::OK;
+    if a.out.is_none() && a.truth.is_none() && a.png.is_none() {
+        say!("error: nothing to do: give --out, --truth, --png or --list");
+        return exit::BAD_INPUT;
     }
-    // Both files are opened before either is emptied, so a bad --truth
-    // path does not cost an existing clip.
+    // Every output is opened before any is emptied or written, so a bad
+    // path does not cost an existing clip or picture (`-`: standard
+    // output, for the PNG too).
     let mut opened: Vec<SimOutput> = Vec::new();
-    for (option, path) in [("--truth", &a.truth), ("--out", &a.out)] {
+    for (option, path) in [("--png", &a.png), ("--truth", &a.truth), ("--out", &a.out)] {
         let Some(path) = path else { continue };
         match SimOutput::open(path) {
             Ok(o) => opened.push(o),
@@ -1192,6 +1195,24 @@ fn sim_cmd(a: SimArgs) -> i32 {
             Ok(w) => writers.push(w),
             Err((name, e)) => return fail(&name, e),
         }
+    }
+    if let Some(mut png) = a.png.as_ref().map(|_| writers.remove(0)) {
+        let mut frame = stature::frame::Frame::new(source::FrameSource::info(&sim).size);
+        sim.render(a.png_frame, &mut frame);
+        let mut rgb = export::to_rgb(&frame);
+        if a.annotate {
+            export::annotate(&mut rgb, &sim);
+        }
+        // The error names the output (see `Named`).
+        if let Err(e) =
+            export::write_png(&mut png, &rgb, spec.width, spec.height).and_then(|()| png.flush())
+        {
+            say!("error: {e}");
+            return exit::UNAVAILABLE;
+        }
+    }
+    if a.out.is_none() && a.truth.is_none() {
+        return exit::OK;
     }
     let mut truth = a.truth.as_ref().map(|_| writers.remove(0));
     let mut y4m = a.out.as_ref().map(|_| writers.remove(0));

@@ -1485,7 +1485,24 @@ fn sim_opens_every_output_before_emptying_one() {
     let clip_s = clip.display().to_string();
     let new = dir.join("new.y4m").display().to_string();
     let truth = dir.join("t.json").display().to_string();
+    let png = dir.join("view.png");
+    std::fs::write(&png, b"an existing picture").unwrap();
+    let png_s = png.display().to_string();
     let cases: &[(&[&str], i32, &str)] = &[
+        // Before: the picture was written, then the clip's directory
+        // was found missing.
+        (
+            &["--png", &png_s, "--out", "/nonexistent-dir/c.y4m"],
+            3,
+            "--out /nonexistent-dir/c.y4m: directory /nonexistent-dir does not exist",
+        ),
+        // Before: a Y4M clip written into `x.png`.
+        (&["--out", &png_s], 2, "a .png name for what is not a PNG"),
+        (
+            &["--truth", &clip_s],
+            2,
+            "a .y4m name for what is not a Y4M clip",
+        ),
         // Before: the clip was emptied, then the truth failed.
         (
             &["--out", &clip_s, "--truth", "/nonexistent-dir/t.json"],
@@ -1529,7 +1546,22 @@ fn sim_opens_every_output_before_emptying_one() {
             "{args:?}"
         );
         assert!(!std::path::Path::new(&new).exists(), "{args:?}");
+        assert_eq!(std::fs::read(&png).unwrap(), b"an existing picture");
     }
+    // `--png -` is standard output, as `--out -` is (before: a file
+    // named `-`).
+    let o = Command::new(stature_bin())
+        .args(["sim", "--frames", "2", "--png", "-"])
+        .current_dir(&*dir)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.stdout.starts_with(b"\x89PNG\r\n\x1a\n"),
+        "a PNG on stdout"
+    );
+    assert!(!dir.join("-").exists());
 }
 
 /// `config --check` makes the checks `run` makes at start-up, with its
