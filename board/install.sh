@@ -13,7 +13,8 @@
 # --replace-config replaces it anyway, the old one saved as stature.toml.old.
 # The config is root:stature, mode 0640: the service reads it, other users
 # do not (it may hold a broker password).
-# POSIX sh and busybox-compatible; DESTDIR=/some/root installs into a tree.
+# POSIX sh and busybox-compatible; DESTDIR=/some/root installs into a tree
+# (an empty one is fine; with systemd, the unit is enabled there for boot).
 set -eu
 
 here=$(cd "$(dirname "$0")" && pwd)
@@ -41,7 +42,7 @@ while [ $# -gt 0 ]; do
             reports="$reports${reports:+, }\"$2\""; shift 2 ;;
         --replace-config) replace_config=1; shift ;;
         --no-systemd) systemd=0; shift ;;
-        -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
         *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -55,6 +56,12 @@ if [ -z "$binary" ]; then
 fi
 [ -n "$binary" ] && [ -x "$binary" ] || { echo "install.sh: no stature binary (use --binary PATH)" >&2; exit 2; }
 D=${DESTDIR:-}
+if [ -n "$D" ]; then
+    # A new, empty tree: the user and group files start empty.
+    mkdir -p "$D/etc"
+    [ -f "$D/etc/group" ] || : >"$D/etc/group"
+    [ -f "$D/etc/passwd" ] || : >"$D/etc/passwd"
+fi
 
 # --- user and groups (shadow utils, busybox adduser, or plain files on
 # images that have neither).
@@ -136,6 +143,24 @@ if [ -f "$conf" ] && ! cmp -s "$conf" "$conf.new" && ! { [ -f "$conf.dist" ] && 
 fi
 keep=0
 [ "$edited" = 1 ] && [ "$replace_config" = 0 ] && keep=1
+if [ "$keep" = 1 ]; then caps_from=$conf; else caps_from=$conf.new; fi
+# Board caps from the [board] section of the config the service will read
+# -> systemd resource control; read before anything is replaced.
+# A TOML integer as a board profile writes it (`1_024` is 1024, a comment
+# may follow); anything else is refused rather than read as its leading
+# digits (`1_024` once became MemoryMax=1M).
+board_value() {
+    v=$(sed -n '/^[[:space:]]*\[board\]/,/^[[:space:]]*\[/ s/^[[:space:]]*'"$1"'[[:space:]]*=[[:space:]]*\([^#]*\).*/\1/p' "$caps_from" | head -1 | tr -d '[:space:]_')
+    case "$v" in
+        *[!0-9]*)
+            echo "install.sh: [board] $1 = $v in $caps_from is not a whole number this script can read (write it as plain digits); nothing was installed" >&2
+            rm -f "$conf.new"
+            exit 2 ;;
+    esac
+    echo "$v"
+}
+mem=$(board_value memory_max_mib)
+cpu=$(board_value cpu_quota_percent)
 # The config the service will read, checked by the new binary before
 # anything is replaced (when it runs here, i.e. not into a DESTDIR tree).
 # Its keys only: the state directory is made by systemd when the service
@@ -175,12 +200,6 @@ chmod 0755 "$D/usr/local/bin/.stature.new"
 mv -f "$D/usr/local/bin/.stature.new" "$D/usr/local/bin/stature"
 cp "$here/stature.service" "$D/etc/systemd/system/stature.service"
 chmod 0644 "$D/etc/systemd/system/stature.service"
-# Board caps from the config's [board] section -> systemd resource control.
-board_value() {
-    sed -n '/^\[board\]/,/^\[/ s/^'"$1"' *= *\([0-9]*\).*/\1/p' "$conf" | head -1
-}
-mem=$(board_value memory_max_mib)
-cpu=$(board_value cpu_quota_percent)
 {
     echo "# From the [board] section of /etc/stature/stature.toml (board/install.sh;"
     echo "# run it again after changing those caps there)."
@@ -196,11 +215,26 @@ if [ "$systemd" = 1 ] && [ -z "$D" ] && has systemctl && [ -d /run/systemd/syste
     systemctl enable stature.service
     systemctl restart stature.service
     echo "install.sh: stature enabled and started; logs: sudo journalctl -u stature -f"
+elif [ "$systemd" = 1 ] && [ -n "$D" ]; then
+    # An image being built: enabled as `systemctl enable` would (the
+    # unit's WantedBy=), started when the image boots.
+    mkdir -p "$D/etc/systemd/system/multi-user.target.wants"
+    ln -sf /etc/systemd/system/stature.service "$D/etc/systemd/system/multi-user.target.wants/stature.service"
+    echo "install.sh: stature enabled in $D; it starts when the image boots"
 else
-    # What StateDirectory= would create.
+    # What StateDirectory= would create, the service user's. Numeric ids:
+    # under DESTDIR the tree's files count, not this machine's (and a
+    # build without root cannot chown: the image's builder does).
     mkdir -p "$D/var/lib/stature"
     chmod 0750 "$D/var/lib/stature"
-    if [ -z "$D" ]; then chown stature:stature /var/lib/stature; fi
-    echo "install.sh: installed without systemd; run as: setpriv --reuid stature --regid stature --init-groups /usr/local/bin/stature run --config /etc/stature/stature.toml"
+    uid=$(grep '^stature:' "$D/etc/passwd" | cut -d: -f3)
+    gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
+    chown "$uid:$gid" "$D/var/lib/stature" 2>/dev/null || [ -n "$D" ] || {
+        echo "install.sh: cannot give /var/lib/stature to user stature (run as root)" >&2
+        exit 1
+    }
+    # su -s: busybox's setpriv has no --reuid; su (busybox or util-linux)
+    # sets the user's groups (video, dialout) and overrides its nologin shell.
+    echo "install.sh: installed without systemd; run as: su -s /bin/sh -c 'exec /usr/local/bin/stature run --config /etc/stature/stature.toml' stature"
 fi
 echo "install.sh: /usr/local/bin/stature, /etc/stature/stature.toml ($(sed -n 's/^name *= *//p' "$D/etc/stature/stature.toml" | head -1)), /etc/systemd/system/stature.service"

@@ -301,3 +301,108 @@ fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config()
     assert_eq!(code, Some(2), "{log}");
     assert!(log.contains("--report needs a value"), "{log}");
 }
+
+/// `board/install.sh` into a new, empty tree. Before: it stopped at a
+/// missing `etc/group`; `memory_max_mib = 1_024` (valid TOML) became
+/// `MemoryMax=1M`; without systemd the state directory stayed root's and
+/// the printed start command used a `setpriv` option busybox lacks; with
+/// systemd under DESTDIR the unit was not enabled and the script said
+/// "installed without systemd".
+#[test]
+fn install_sh_into_an_empty_tree_reads_the_caps_as_toml_and_gives_the_state_directory_away() {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let scratch = common::fresh_dir("board-install_sh_into_an_empty_tree");
+    let binary = scratch.join("stature-arm");
+    std::fs::write(&binary, "#!/bin/sh\nexit 9\n").unwrap();
+    std::fs::set_permissions(&binary, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let profile = |name: &str, caps: &str| {
+        let text = std::fs::read_to_string(board_dir().join("rpi4-aarch64.toml")).unwrap();
+        let (before, after) = text
+            .split_once("memory_max_mib = 128")
+            .expect("the rpi4 cap");
+        let p = scratch.join(name);
+        std::fs::write(&p, format!("{before}{caps}{after}")).unwrap();
+        p
+    };
+    let install = |root: &Path, profile: &Path, extra: &[&str]| {
+        let out = std::process::Command::new("sh")
+            .arg(board_dir().join("install.sh"))
+            .arg("--binary")
+            .arg(&binary)
+            .arg("--profile")
+            .arg(profile)
+            .args(extra)
+            .env("DESTDIR", root)
+            .output()
+            .expect("run sh board/install.sh");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (out.status.code(), text)
+    };
+    let caps = |root: &Path| {
+        std::fs::read_to_string(root.join("etc/systemd/system/stature.service.d/board.conf"))
+            .unwrap()
+    };
+
+    // An indented key with digit separators and a comment.
+    let root = scratch.join("no-systemd");
+    let p = profile("sep.toml", "  memory_max_mib = 1_024 # a 2 GiB board");
+    let (code, log) = install(&root, &p, &["--no-systemd"]);
+    assert_eq!(code, Some(0), "{log}");
+    assert!(caps(&root).contains("MemoryMax=1024M\n"), "{}", caps(&root));
+    let conf = Config::load(&root.join("etc/stature/stature.toml"), "--config").unwrap();
+    assert_eq!(conf.board.memory_max_mib, 1024, "the binary reads the same");
+    // The state directory is the service user's (when the test runs as
+    // root, which can give it away), and the start command is busybox's too.
+    let uid_of = |file: &str| -> u32 {
+        let text = std::fs::read_to_string(root.join(file)).unwrap();
+        let line = text.lines().find(|l| l.starts_with("stature:")).unwrap();
+        line.split(':').nth(2).unwrap().parse().unwrap()
+    };
+    let state = std::fs::metadata(root.join("var/lib/stature")).unwrap();
+    // (A file this process creates is its user's: root's, or not.)
+    let mine = scratch.join("mine");
+    std::fs::write(&mine, b"").unwrap();
+    if std::fs::metadata(&mine).unwrap().uid() == 0 {
+        assert_eq!(state.uid(), uid_of("etc/passwd"));
+        assert_eq!(state.gid(), uid_of("etc/group"));
+    }
+    assert_eq!(state.permissions().mode() & 0o777, 0o750);
+    assert!(
+        log.contains("run as: su -s /bin/sh -c 'exec /usr/local/bin/stature run --config /etc/stature/stature.toml' stature"),
+        "{log}"
+    );
+    assert!(!log.contains("setpriv"), "{log}");
+
+    // With systemd, into an image: enabled as `systemctl enable` would.
+    let root = scratch.join("image");
+    let (code, log) = install(&root, &board_dir().join("rpi4-aarch64.toml"), &[]);
+    assert_eq!(code, Some(0), "{log}");
+    let link = root.join("etc/systemd/system/multi-user.target.wants/stature.service");
+    assert_eq!(
+        std::fs::read_link(&link).unwrap(),
+        Path::new("/etc/systemd/system/stature.service")
+    );
+    assert!(log.contains("enabled in"), "{log}");
+    assert!(!log.contains("without systemd"), "{log}");
+    assert!(caps(&root).contains("MemoryMax=128M\n"));
+
+    // A value the script cannot read is refused before anything is
+    // replaced: the installed config and binary stay.
+    let before = std::fs::read(root.join("etc/stature/stature.toml")).unwrap();
+    let p = profile("hex.toml", "memory_max_mib = 0x400");
+    let (code, log) = install(&root, &p, &["--replace-config"]);
+    assert_eq!(code, Some(2), "{log}");
+    assert!(
+        log.contains("memory_max_mib = 0x400") && log.contains("nothing was installed"),
+        "{log}"
+    );
+    assert_eq!(
+        std::fs::read(root.join("etc/stature/stature.toml")).unwrap(),
+        before
+    );
+    assert!(!root.join("etc/stature/stature.toml.new").exists());
+}
