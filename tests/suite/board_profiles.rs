@@ -192,6 +192,23 @@ fn unit_runs_the_installed_profile_as_an_unprivileged_user() {
     assert!(allowed.contains("char-video4linux"), "{allowed}");
 }
 
+/// `sh board/install.sh ARGS` with `DESTDIR=root`: its exit code, and its
+/// standard output and error together.
+fn run_install(root: &Path, args: &[&str]) -> (Option<i32>, String) {
+    let out = std::process::Command::new("sh")
+        .arg(board_dir().join("install.sh"))
+        .args(args)
+        .env("DESTDIR", root)
+        .output()
+        .expect("run sh board/install.sh");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.code(), text)
+}
+
 /// `board/install.sh` into a scratch tree (`DESTDIR`), as an installer
 /// runs it: the first time with a sink URI holding `&` (which sed once
 /// turned into the matched text), then to upgrade after editing the config
@@ -210,20 +227,11 @@ fn install_sh_writes_the_sinks_as_given_and_an_upgrade_keeps_the_edited_config()
     std::fs::write(&binary, "#!/bin/sh\nexit 9\n").unwrap();
     std::fs::set_permissions(&binary, std::fs::Permissions::from_mode(0o755)).unwrap();
     let install = |extra: &[&str]| {
-        let out = std::process::Command::new("sh")
-            .arg(board_dir().join("install.sh"))
-            .args(["--no-systemd", "--binary"])
-            .arg(&binary)
-            .args(extra)
-            .env("DESTDIR", &*root)
-            .output()
-            .expect("run sh board/install.sh");
-        let text = format!(
-            "{}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        (out.status.code(), text)
+        let binary = binary.to_str().unwrap();
+        run_install(
+            &root,
+            &[&["--no-systemd", "--binary", binary][..], extra].concat(),
+        )
     };
     let conf = root.join("etc/stature/stature.toml");
     let mqtt = "mqtt:broker.lan?topic=stature/entrance&qos=1";
@@ -325,22 +333,11 @@ fn install_sh_into_an_empty_tree_reads_the_caps_as_toml_and_gives_the_state_dire
         p
     };
     let install = |root: &Path, profile: &Path, extra: &[&str]| {
-        let out = std::process::Command::new("sh")
-            .arg(board_dir().join("install.sh"))
-            .arg("--binary")
-            .arg(&binary)
-            .arg("--profile")
-            .arg(profile)
-            .args(extra)
-            .env("DESTDIR", root)
-            .output()
-            .expect("run sh board/install.sh");
-        let text = format!(
-            "{}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        (out.status.code(), text)
+        let (binary, profile) = (binary.to_str().unwrap(), profile.to_str().unwrap());
+        run_install(
+            root,
+            &[&["--binary", binary, "--profile", profile][..], extra].concat(),
+        )
     };
     let caps = |root: &Path| {
         std::fs::read_to_string(root.join("etc/systemd/system/stature.service.d/board.conf"))
