@@ -41,8 +41,10 @@ pub struct MeasureConfig {
     /// Frames between height records of a live track.
     pub report_interval: u32,
     /// Corrected heights below this are not reported, metres: what the
-    /// classifier let through that is not a standing person (a dog, about
-    /// 0.7 m; a person crouching). Small children are not measured either.
+    /// classifier let through that is not a standing person (a dog, whose
+    /// silhouette reads 0.9-1.0 m when it trots toward or away from the
+    /// camera; a person crouching). Children under about 1.1 m (5 years)
+    /// are not measured either.
     pub min_height_m: f64,
     /// Corrected heights above this are not reported, metres (two people
     /// one above the other in the image, a pole taken for a person).
@@ -70,7 +72,7 @@ impl Default for MeasureConfig {
             inlier_m: 0.05,
             min_samples: 8,
             report_interval: 25,
-            min_height_m: 0.9,
+            min_height_m: 1.1,
             max_height_m: 2.4,
             pending_tracks: 16,
             pending_confidence: 0.5,
