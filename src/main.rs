@@ -363,6 +363,21 @@ fn config_cmd(a: ConfigArgs) -> i32 {
     // What `run` would refuse at start-up, with its exit code: a config
     // that passes here and then stops the service helps nobody.
     let checked = if a.keys_only {
+        // The environment is the service's, not this shell's: a password
+        // with no user name in the file is legal only if it supplies one.
+        let m = &cfg.report.mqtt;
+        let mqtt_sink = cfg.report.sink_specs().is_ok_and(|specs| {
+            specs
+                .iter()
+                .any(|s| matches!(s, stature::report::sink::SinkSpec::Mqtt(_)))
+        });
+        if mqtt_sink && !m.password.is_empty() && m.username.is_empty() {
+            say!(
+                "warning: {}: [report.mqtt] password without a username: the service's environment \
+                 must set STATURE_MQTT_USERNAME, or run refuses it (exit code 2)",
+                path.display()
+            );
+        }
         Ok(())
     } else {
         check_run_paths(&cfg)

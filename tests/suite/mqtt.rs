@@ -965,6 +965,15 @@ fn a_password_without_a_user_name_is_bad_input() {
             "the password is never shown: {err}"
         );
     }
+    // The installer's check of the keys alone passes, as the user name may
+    // come from the service's environment, and says so.
+    let out = go(&["config", "--check", conf, "--keys-only"], None);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("password without a username") && err.contains("STATURE_MQTT_USERNAME"),
+        "{err}"
+    );
     // The environment's user name makes it legal (the check connects to
     // nothing, so no broker is needed).
     let out = go(&["config", "--check", conf], Some("camera"));
