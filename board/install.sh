@@ -68,6 +68,8 @@ fi
 has() { command -v "$1" >/dev/null 2>&1; }
 group_exists() { grep -q "^$1:" "$D/etc/group"; }
 user_exists() { grep -q "^$1:" "$D/etc/passwd"; }
+# The stature user's (passwd) or group's (group) numeric id in the tree.
+stature_id() { grep '^stature:' "$D/etc/$1" | cut -d: -f3; }
 add_group() {
     group_exists "$1" && return 0
     if [ -z "$D" ] && has groupadd; then groupadd --system "$1"
@@ -88,7 +90,7 @@ if ! user_exists stature; then
     elif [ -z "$D" ] && has adduser; then
         adduser -S -D -H -h /var/lib/stature -s /sbin/nologin -G stature stature
     else
-        gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
+        gid=$(stature_id group)
         uid=$gid
         while cut -d: -f3 "$D/etc/passwd" | grep -qx "$uid"; do uid=$((uid - 1)); done
         echo "stature:x:$uid:$gid:stature camera service:/var/lib/stature:/sbin/nologin" >>"$D/etc/passwd"
@@ -128,7 +130,7 @@ protect() {
         echo "install.sh: cannot make $1 mode 0640 (run as root)" >&2
         exit 1
     }
-    gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
+    gid=$(stature_id group)
     chown "0:$gid" "$1" 2>/dev/null || [ -n "$D" ] || {
         echo "install.sh: cannot give $1 to group stature (run as root)" >&2
         exit 1
@@ -227,8 +229,8 @@ else
     # build without root cannot chown: the image's builder does).
     mkdir -p "$D/var/lib/stature"
     chmod 0750 "$D/var/lib/stature"
-    uid=$(grep '^stature:' "$D/etc/passwd" | cut -d: -f3)
-    gid=$(grep '^stature:' "$D/etc/group" | cut -d: -f3)
+    uid=$(stature_id passwd)
+    gid=$(stature_id group)
     chown "$uid:$gid" "$D/var/lib/stature" 2>/dev/null || [ -n "$D" ] || {
         echo "install.sh: cannot give /var/lib/stature to user stature (run as root)" >&2
         exit 1

@@ -419,37 +419,36 @@ impl Config {
         specs: &[crate::report::sink::SinkSpec],
     ) -> Result<(), ConfigError> {
         use crate::report::sink::SinkSpec;
-        // (key, the value as the user wrote it, the path)
-        let mut outputs: Vec<(&str, String, &str)> = Vec::new();
+        let mut outputs: Vec<(&str, &str)> = Vec::new();
         if !self.run.state.is_empty() {
-            outputs.push(("run.state", self.run.state.clone(), &self.run.state));
+            outputs.push(("run.state", &self.run.state));
         }
         if !self.run.snapshot.is_empty() {
-            outputs.push((
-                "run.snapshot",
-                self.run.snapshot.clone(),
-                &self.run.snapshot,
-            ));
+            outputs.push(("run.snapshot", &self.run.snapshot));
         }
         for spec in specs {
             if let SinkSpec::File(path) = spec {
-                outputs.push(("report.sinks", format!("file:{path}"), path));
+                outputs.push(("report.sinks", path));
             }
         }
-        let ids: Vec<FileId> = outputs.iter().map(|(_, _, p)| FileId::of_path(p)).collect();
+        // A value as the user wrote it: a sink with its scheme.
+        let written = |(key, path): (&str, &str)| match key {
+            "report.sinks" => format!("file:{path}"),
+            _ => path.to_string(),
+        };
+        let ids: Vec<FileId> = outputs.iter().map(|(_, p)| FileId::of_path(p)).collect();
         for (i, id) in ids.iter().enumerate() {
             if let Some(j) = ids[..i].iter().position(|e| e == id) {
-                let (key, value, _) = &outputs[i];
                 let other = match outputs[j].0 {
                     "report.sinks" => "a report.sinks file",
                     k => k,
                 };
                 return Err(ConfigError::invalid(
-                    key,
-                    value,
+                    outputs[i].0,
+                    written(outputs[i]),
                     format!(
                         "the same file as {other} `{}` (each would overwrite the other)",
-                        outputs[j].1
+                        written(outputs[j])
                     ),
                 ));
             }
@@ -483,11 +482,11 @@ impl Config {
                 inputs.push((what, "every record would be written to it twice", id));
             }
         }
-        for ((key, value, _), id) in outputs.iter().zip(&ids) {
+        for (&output, id) in outputs.iter().zip(&ids) {
             if let Some((what, why, _)) = inputs.iter().find(|(_, _, i)| i == id) {
                 return Err(ConfigError::invalid(
-                    key,
-                    value,
+                    output.0,
+                    written(output),
                     format!("the same file as {what} ({why})"),
                 ));
             }

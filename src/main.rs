@@ -539,14 +539,7 @@ fn check_sinks(cfg: &Config) -> Result<(), Refused> {
         match spec {
             #[cfg(feature = "mqtt")]
             SinkSpec::Mqtt(m) => {
-                let settings =
-                    stature::report::mqtt::MqttSettings::resolve(m, &cfg.report.mqtt, |k| {
-                        std::env::var(k).ok()
-                    });
-                settings.check_credentials().map_err(|e| Refused {
-                    message: format!("cannot open report sink: {e}"),
-                    code: exit::BAD_INPUT,
-                })?;
+                let settings = mqtt_settings(cfg, m)?;
                 stature::report::mqtt::link::check_local(&settings).map_err(|e| refused(&e))?;
             }
             // Without MQTT support, opening refuses at once, as in `run`.
@@ -564,6 +557,25 @@ fn check_sinks(cfg: &Config) -> Result<(), Refused> {
         }
     }
     Ok(())
+}
+
+/// What an `mqtt:` sink will run with (its URI over `[report.mqtt]`, the
+/// environment's credentials over both), refused with exit code 2 when it
+/// has a password without a user name: a configuration mistake wherever
+/// it came from, the file or the environment.
+#[cfg(feature = "mqtt")]
+fn mqtt_settings(
+    cfg: &Config,
+    m: &stature::report::mqtt::MqttSpec,
+) -> Result<stature::report::mqtt::MqttSettings, Refused> {
+    let settings = stature::report::mqtt::MqttSettings::resolve(m, &cfg.report.mqtt, |k| {
+        std::env::var(k).ok()
+    });
+    settings.check_credentials().map_err(|e| Refused {
+        message: format!("cannot open report sink: {e}"),
+        code: exit::BAD_INPUT,
+    })?;
+    Ok(settings)
 }
 
 /// A path option's value as the text a config value holds. A name that is
@@ -772,17 +784,13 @@ fn run_source(
         // Allowed (a run for its state file or snapshot), but rarely meant.
         log::warn!("no report sinks (report.sinks is empty): the run's records go nowhere");
     }
-    // A password without a user name is a configuration mistake (exit
-    // code 2) wherever it came from: the file or the environment.
+    // Before any sink opens: the open's errors are all exit code 3.
     #[cfg(feature = "mqtt")]
     for spec in &specs {
         if let sink::SinkSpec::Mqtt(m) = spec {
-            let settings = stature::report::mqtt::MqttSettings::resolve(m, &cfg.report.mqtt, |k| {
-                std::env::var(k).ok()
-            });
-            if let Err(e) = settings.check_credentials() {
-                log::error!("cannot open report sink: {e}");
-                return exit::BAD_INPUT;
+            if let Err(r) = mqtt_settings(cfg, m) {
+                log::error!("{}", r.message);
+                return r.code;
             }
         }
     }
