@@ -52,6 +52,10 @@ use vertical::VerticalParams;
 /// [`state::MAX_STATE_BYTES`].
 pub const MAX_ANCHORS: usize = 8192;
 
+/// Refits in a row that must find the same degenerate view before it is
+/// logged as a warning ([`Degeneracy`]).
+pub const DEGENERACY_REFITS: u32 = 3;
+
 /// `[calibrate]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -395,6 +399,8 @@ pub struct Calibrator {
     emitted: Option<Estimate>,
     stability: f64,
     degeneracy_told: Option<Degeneracy>,
+    /// The last refit's degeneracy and how many refits in a row had it.
+    degeneracy_seen: (Option<Degeneracy>, u32),
     /// State file writer, if configured.
     pub state: Option<state::StateFile>,
     last_state_write: Option<u64>,
@@ -423,6 +429,7 @@ impl Calibrator {
             emitted: None,
             stability: 0.0,
             degeneracy_told: None,
+            degeneracy_seen: (None, 0),
             state: None,
             last_state_write: None,
             fps: 25.0,
@@ -544,12 +551,7 @@ impl Calibrator {
             self.save_state();
         }
         let est = self.estimate?;
-        if let Some(dg) = est.degeneracy {
-            if self.degeneracy_told != Some(dg) {
-                log::warn!("calibration: {}", dg.describe());
-                self.degeneracy_told = Some(dg);
-            }
-        }
+        self.tell_degeneracy(&est);
         let material = match &self.emitted {
             None => true,
             Some(e) => {
@@ -753,6 +755,39 @@ impl Calibrator {
             degeneracy,
             version,
         });
+    }
+
+    /// Warns of a degenerate view once it has held for
+    /// [`DEGENERACY_REFITS`] refits in a row (an early fit from a few
+    /// people can pass through one on its way to a good estimate: PETS
+    /// read "nearly level" for one refit at frame 132, then settled at a
+    /// 15.8° tilt), and says so when a view it warned of no longer is.
+    /// Returns what it logged: the degeneracy warned of, or `None` for the
+    /// all-clear (an outer `None`: nothing).
+    fn tell_degeneracy(&mut self, est: &Estimate) -> Option<Option<Degeneracy>> {
+        let run = match (est.degeneracy, self.degeneracy_seen) {
+            (Some(dg), (Some(seen), n)) if dg == seen => n.saturating_add(1),
+            (Some(_), _) => 1,
+            (None, _) => 0,
+        };
+        self.degeneracy_seen = (est.degeneracy, run);
+        match (est.degeneracy, self.degeneracy_told) {
+            (Some(dg), told) if told != Some(dg) && run >= DEGENERACY_REFITS => {
+                log::warn!("calibration: {}", dg.describe());
+                self.degeneracy_told = Some(dg);
+                Some(Some(dg))
+            }
+            (None, Some(_)) => {
+                log::info!(
+                    "calibration: the view is no longer degenerate (f {:.0} px, tilt {:.1}°)",
+                    est.geom.focal(),
+                    est.geom.tilt().to_degrees()
+                );
+                self.degeneracy_told = None;
+                Some(None)
+            }
+            _ => None,
+        }
     }
 
     /// Spatial spread of the anchors' feet: occupied cells of a 4×4 grid

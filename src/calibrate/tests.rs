@@ -587,3 +587,39 @@ fn an_oversized_state_file_is_refused_unread_and_set_aside() {
     );
     assert!(!path.exists());
 }
+
+/// A degenerate view is warned of only once it has held for a few refits
+/// (PETS passed through "nearly level" for one early refit), and a warning
+/// is withdrawn when the view stops being degenerate.
+#[test]
+fn a_passing_degeneracy_is_not_warned_of_and_a_warning_is_withdrawn() {
+    let cam = Camera::centred(500.0, 82.0, 0.0, 6.0, 640, 480);
+    let cfg = CalibrateConfig {
+        camera_height_m: 6.0,
+        ..Default::default()
+    };
+    let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 4);
+    let flagged = *c.estimate().expect("an estimate");
+    assert_eq!(flagged.degeneracy, Some(Degeneracy::NearVertical));
+    let clear = Estimate {
+        degeneracy: None,
+        ..flagged
+    };
+    let mut c = Calibrator::new(&cfg, 640, 480);
+    // One degenerate refit between good ones: nothing said.
+    assert_eq!(c.tell_degeneracy(&clear), None);
+    assert_eq!(c.tell_degeneracy(&flagged), None);
+    assert_eq!(c.tell_degeneracy(&clear), None);
+    for _ in 1..DEGENERACY_REFITS {
+        assert_eq!(c.tell_degeneracy(&flagged), None);
+    }
+    // Held for DEGENERACY_REFITS refits: warned of, once.
+    assert_eq!(
+        c.tell_degeneracy(&flagged),
+        Some(Some(Degeneracy::NearVertical))
+    );
+    assert_eq!(c.tell_degeneracy(&flagged), None);
+    // Gone: the all-clear, once.
+    assert_eq!(c.tell_degeneracy(&clear), Some(None));
+    assert_eq!(c.tell_degeneracy(&clear), None);
+}

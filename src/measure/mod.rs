@@ -36,7 +36,9 @@ pub struct MeasureConfig {
     pub ransac_iterations: usize,
     /// Truncation of the squared-difference score and inlier band, metres.
     pub inlier_m: f64,
-    /// Per-frame heights a track needs before its height is reported.
+    /// Per-frame heights a track needs before its height is reported, at
+    /// most [`crate::track::RING`]: a track keeps only its newest that many
+    /// observations, so a larger value would never be reached.
     pub min_samples: usize,
     /// Frames between height records of a live track.
     pub report_interval: u32,
@@ -93,7 +95,11 @@ impl MeasureConfig {
             1..=10000,
         )?;
         check_range("measure.inlier_m", self.inlier_m, 0.005..=1.0)?;
-        check_range("measure.min_samples", self.min_samples, 1..=4096)?;
+        check_range(
+            "measure.min_samples",
+            self.min_samples,
+            1..=crate::track::RING,
+        )?;
         check_range("measure.report_interval", self.report_interval, 1..=100000)?;
         check_range("measure.min_height_m", self.min_height_m, 0.0..=2.0)?;
         check_range(

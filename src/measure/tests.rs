@@ -154,3 +154,20 @@ fn implausible_heights_are_not_reported() {
     let h = m.track_height(Some(&est), obs.iter()).unwrap();
     assert!((h.height - 0.7).abs() < 1e-6, "{h:?}");
 }
+
+#[test]
+fn min_samples_cannot_exceed_what_a_track_keeps() {
+    // A track keeps its newest `RING` observations: a larger minimum would
+    // pass the check and then silently give no heights at all.
+    let ok = MeasureConfig {
+        min_samples: crate::track::RING,
+        ..MeasureConfig::default()
+    };
+    assert!(ok.validate().is_ok());
+    let too_many = MeasureConfig {
+        min_samples: crate::track::RING + 1,
+        ..MeasureConfig::default()
+    };
+    let err = too_many.validate().unwrap_err().to_string();
+    assert!(err.contains("measure.min_samples") && err.contains("1..=128"), "{err}");
+}
