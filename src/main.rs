@@ -748,7 +748,7 @@ type Outcome = (
 fn run_source(
     cfg: &Config,
     src: &mut dyn source::FrameSource,
-    stop: &AtomicBool,
+    stop: &Arc<AtomicBool>,
     outcome: &mut Outcome,
     until_confident: bool,
 ) -> i32 {
@@ -812,6 +812,9 @@ fn run_source(
         info.fps_f64()
     );
     let (mut reporter, rx, counters) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
+    // When no sink can deliver any more, a quiet source's blocked read is
+    // woken through the signals' flag (the loop tells the two apart).
+    let _ = counters.wake.set(stop.clone());
     let io = report::spawn_io(rx, sinks, cfg.report.format, counters.clone());
     let opts = run::LoopOptions {
         max_frames: cfg.run.frames,
@@ -832,8 +835,11 @@ fn run_source(
     // shutdown_timeout_s for an absent broker). The vision side is done and
     // the state and snapshot are written: a signal now ends the wait, also
     // one that came after the loop's last look (while they were written).
-    let late_signal =
-        stop.swap(false, Ordering::Relaxed) && summary.stopped_by != run::StopReason::Signal;
+    let late_signal = stop.swap(false, Ordering::Relaxed)
+        && !matches!(
+            summary.stopped_by,
+            run::StopReason::Signal | run::StopReason::ReadersGone
+        );
     let give_up = || late_signal || stop.load(Ordering::Relaxed);
     reporter.finish_unless(Duration::from_secs(5), give_up);
     let waiting = std::time::Instant::now();

@@ -525,6 +525,9 @@ pub enum StopReason {
     SourceError,
     /// The [`Observer`] asked for a stop (`stature snapshot` once calibrated).
     Observer,
+    /// Every report sink writes into a pipe whose reader has gone
+    /// ([`crate::report::Counters::readers_gone`]).
+    ReadersGone,
 }
 
 /// In plain words, for the log ("stopped by end of stream").
@@ -538,6 +541,7 @@ impl core::fmt::Display for StopReason {
             // The only observer that stops a run is `stature snapshot`'s,
             // once the calibration is confident enough to measure.
             StopReason::Observer => "the calibration's confidence",
+            StopReason::ReadersGone => "the report outputs' readers leaving",
         })
     }
 }
@@ -770,6 +774,10 @@ pub fn run_observed(
     };
     let mut error = None;
     let stopped_by = loop {
+        // First: it raises the stop flag too, to wake a blocked read.
+        if reporter.readers_gone() {
+            break StopReason::ReadersGone;
+        }
         if opts.stop.load(Ordering::Relaxed) {
             break StopReason::Signal;
         }
@@ -947,6 +955,7 @@ mod tests {
             (StopReason::Signal, "a signal"),
             (StopReason::SourceError, "a source error"),
             (StopReason::Observer, "the calibration's confidence"),
+            (StopReason::ReadersGone, "the report outputs' readers leaving"),
         ] {
             assert_eq!(reason.to_string(), words);
         }

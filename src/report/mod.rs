@@ -17,7 +17,7 @@ use crossbeam_channel::{bounded, Receiver, Sender, TryRecvError, TrySendError};
 use record::Record;
 use sink::Sink;
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 /// Counters shared by the loop and the I/O thread.
@@ -31,6 +31,14 @@ pub struct Counters {
     /// Record deliveries that failed at a sink (one per sink per record).
     /// What each sink delivered in the end is its [`SinkTally`].
     pub dropped_sink: AtomicU64,
+    /// Every sink writes into a pipe whose reader has gone (`EPIPE`: the
+    /// stdout of `stature run | head -1`, a FIFO whose reader quit): no
+    /// record can reach anyone any more, so the loop stops.
+    pub readers_gone: AtomicBool,
+    /// Raised with [`Counters::readers_gone`]: the flag a blocked source
+    /// read looks at (the signal handlers' stop flag), so that a quiet
+    /// pipe or camera does not keep the loop from seeing it.
+    pub wake: std::sync::OnceLock<Arc<AtomicBool>>,
 }
 
 impl Counters {
@@ -69,6 +77,11 @@ impl Reporter {
     /// Shared counters.
     pub fn counters(&self) -> &Arc<Counters> {
         &self.counters
+    }
+
+    /// Whether every sink's reader has gone ([`Counters::readers_gone`]).
+    pub fn readers_gone(&self) -> bool {
+        self.counters.readers_gone.load(Ordering::Relaxed)
     }
 
     /// Queues a record without blocking (held finals go first).
@@ -194,6 +207,8 @@ pub fn spawn_io(
         .spawn(move || {
             let mut buf = [0u8; encode::MAX_RECORD];
             let mut failures = vec![0u64; sinks.len()];
+            // Sinks whose reader has gone: not written again.
+            let mut gone = vec![false; sinks.len()];
             // Made once here, not per failing write (whose error text may
             // still allocate: the I/O thread's, never the vision loop's).
             let labels: Vec<String> = sinks.iter().map(Sink::label).collect();
@@ -213,15 +228,33 @@ pub fn spawn_io(
                         return;
                     }
                 };
-                for ((sink, fails), label) in sinks.iter_mut().zip(failures.iter_mut()).zip(&labels)
-                {
+                let it = sinks.iter_mut().zip(failures.iter_mut()).zip(gone.iter_mut());
+                for (((sink, fails), gone), label) in it.zip(&labels) {
+                    if *gone {
+                        *fails += 1;
+                        counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
                     if let Err(e) = sink.write(&record, bytes, format) {
                         *fails += 1;
                         counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
+                        *gone = e.kind() == std::io::ErrorKind::BrokenPipe;
                         // Log the first failure and then every 100th, not each one.
-                        if *fails == 1 || *fails % 100 == 0 {
-                            log::warn!("report sink {label}: {e} ({fails} records lost there)");
+                        if *fails == 1 || *fails % 100 == 0 || *gone {
+                            let s = if *fails == 1 { "" } else { "s" };
+                            log::warn!("report sink {label}: {e} ({fails} record{s} lost there)");
                         }
+                    }
+                }
+                if !gone.is_empty()
+                    && gone.iter().all(|&g| g)
+                    && !counters.readers_gone.swap(true, Ordering::Relaxed)
+                {
+                    log::warn!(
+                        "report: the reader of every sink has gone (a closed pipe): stopping the run"
+                    );
+                    if let Some(wake) = counters.wake.get() {
+                        wake.store(true, Ordering::Relaxed);
                     }
                 }
             };

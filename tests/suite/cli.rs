@@ -591,6 +591,59 @@ fn signal_stops_cleanly_with_bye(signal: &str) {
     drop(stdin);
 }
 
+/// `stature run | head -1` on a camera or a live pipe: once the only
+/// sink's reader has gone, no record can reach anyone, so the run stops by
+/// itself (it used to run until the source ended, which a camera never
+/// does), exit 0 as for a filter whose reader had enough.
+#[test]
+fn a_run_whose_only_reader_left_stops_by_itself() {
+    let mut child = Command::new("env")
+        .args(["--default-signal=HUP", stature_bin()])
+        .args(["run", "--source", "y4m:-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // A live source: frames keep coming until the run closes the pipe.
+    let mut stdin = child.stdin.take().unwrap();
+    let clip = common::synthetic_y4m(
+        Size {
+            width: 64,
+            height: 48,
+        },
+        1,
+    );
+    let frame_at = clip.windows(5).position(|w| w == b"FRAME").unwrap();
+    let writer = std::thread::spawn(move || {
+        let mut sent = 0u64;
+        let mut chunk = &clip[..];
+        while stdin.write_all(chunk).is_ok() && sent < 1_000_000 {
+            chunk = &clip[frame_at..];
+            sent += 1;
+        }
+        sent
+    });
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut hello = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut hello).unwrap();
+    assert!(hello.contains("\"hello\""), "{hello}");
+    drop(stdout);
+    // The next record (a status every 125 frames) meets the closed pipe.
+    let status = wait_at_most(&mut child, std::time::Duration::from_secs(60))
+        .expect("the run kept going after its only reader had left");
+    let sent = writer.join().unwrap();
+    assert!(sent < 1_000_000, "the run read every frame offered");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(status.success(), "{status:?}: {err}");
+    assert!(
+        err.contains("the reader of every sink has gone")
+            && err.contains("stopped by the report outputs' readers leaving"),
+        "{err}"
+    );
+}
+
 /// Waits for `child` to exit, for at most `limit`.
 fn wait_at_most(
     child: &mut std::process::Child,
