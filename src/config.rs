@@ -476,14 +476,22 @@ impl Config {
                 FileId::of_path(&self.classify.weights),
             ));
         }
+        let twice = "every record would be written to it twice";
         if specs.iter().any(|s| matches!(s, SinkSpec::Stdout)) {
             if let Some(id) = FileId::of_stdio(std::io::stdout()) {
                 let what = "the file standard output (a stdout sink) writes to".into();
-                inputs.push((what, "every record would be written to it twice", id));
+                inputs.push((what, twice, id));
             }
         }
         for (&output, id) in outputs.iter().zip(&ids) {
             if let Some((what, why, _)) = inputs.iter().find(|(_, _, i)| i == id) {
+                // Only a file sink doubles the records; a snapshot or a
+                // state file would be interleaved with them.
+                let why = match output.0 {
+                    "run.snapshot" if *why == twice => "the image and the records would be mixed in it",
+                    "run.state" if *why == twice => "the state and the records would be mixed in it",
+                    _ => why,
+                };
                 return Err(ConfigError::invalid(
                     output.0,
                     written(output),
@@ -544,8 +552,19 @@ fn parse_error(text: &str, e: &toml::de::Error) -> ConfigError {
         .map(str::trim)
         .find(|l| l.starts_with('[') && !l.starts_with("[["))
         .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    // A key TOML could read: bare (letters, digits, `_`, `-`, dotted) or
+    // quoted. Anything else before the `=` is the line's syntax, not a key.
+    let readable_key = |k: &str| {
+        let k = k.trim();
+        !k.is_empty()
+            && (k.starts_with(['"', '\''])
+                || k.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | ' ')))
+            && !k.contains("  ")
+            && k.split('.').all(|part| !part.trim().contains(' '))
+    };
     match line.split_once('=') {
-        Some((k, v)) if !line.trim_start().starts_with('[') => {
+        Some((k, v)) if !line.trim_start().starts_with('[') && readable_key(k) => {
             let key = match table {
                 Some(t) => format!("{t}.{}", k.trim()),
                 None => k.trim().to_string(),
@@ -566,6 +585,19 @@ pub const DEFAULTS_TOML: &str = include_str!("../config/defaults.toml");
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_line_that_is_not_key_equals_value_is_the_files_syntax_not_a_key() {
+        // "config key `not toml at all` = ==" named a key that is not one.
+        let e = Config::from_toml("not toml at all ===\n").unwrap_err();
+        assert_eq!(e.key, "(file)", "{e}");
+        assert!(e.to_string().contains("(line 1)"), "{e}");
+        // A readable key with a bad value is still that key's error.
+        let e = Config::from_toml("[detect]\nhistory = 10 0\n").unwrap_err();
+        assert_eq!(e.key, "detect.history", "{e}");
+        let e = Config::from_toml("[run]\n\"frames\" = \"x\"\n").unwrap_err();
+        assert_eq!(e.key, "run.\"frames\"", "{e}");
+    }
 
     #[test]
     fn documented_defaults_are_the_real_defaults() {

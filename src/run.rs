@@ -197,9 +197,10 @@ impl Pipeline {
                 Ok(Some(saved)) => match c.resume(&saved) {
                     Ok(r) => {
                         log::info!(
-                            "calibration state {}: resumed {} observations",
+                            "calibration state {}: resumed {} observation{}",
                             cfg.run.state,
-                            r.restored
+                            r.restored,
+                            if r.restored == 1 { "" } else { "s" }
                         );
                         // Once per start, not per anchor: a damaged file
                         // may hold thousands.

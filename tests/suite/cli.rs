@@ -1017,6 +1017,12 @@ fn a_snapshot_path_naming_another_format_is_exit_2_before_the_run_starts() {
             vec!["snapshot", "--source", &src, "--out", &jpeg],
             format!("option `--out` = {jpeg}: only PNG is written"),
         ),
+        // `sim --png -` is stdout; here stdout has the records (a file
+        // named `-` was written).
+        (
+            vec!["snapshot", "--source", &src, "--out", "-"],
+            "option `--out` = -: `-` is not standard output here".to_string(),
+        ),
     ] {
         let out = run(&args);
         let err = String::from_utf8_lossy(&out.stderr);
@@ -1486,7 +1492,23 @@ fn run_outputs_are_refused_when_they_are_its_inputs_or_one_file_twice() {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("the file standard output"), "{err}");
+    assert!(
+        err.contains("the file standard output") && err.contains("written to it twice"),
+        "{err}"
+    );
+    // A snapshot there would not double the records but mix an image in.
+    let out = std::fs::File::create(dir.join("out.png")).unwrap();
+    let o = Command::new(stature_bin())
+        .args(["run", "--source", &src, "--report", "stdout", "--snapshot"])
+        .arg(dir.join("out.png"))
+        .stdin(Stdio::null())
+        .stdout(out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("the image and the records would be mixed"), "{err}");
+    std::fs::remove_file(dir.join("out.png")).unwrap();
     assert_eq!(std::fs::read(&clip).unwrap(), video, "the video is intact");
     assert_eq!(std::fs::read(&a).unwrap(), b"");
     assert_eq!(std::fs::read(dir.join("out.jsonl")).unwrap(), b"");
