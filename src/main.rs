@@ -811,6 +811,13 @@ fn run_source(
         info.size.height,
         info.fps_f64()
     );
+    if info.grey && cfg.detect.chroma_threshold > 0 {
+        log::warn!(
+            "grey source: without colour the chroma foreground test and the colour \
+             re-identification of tracks have nothing to go on; expect fewer and less \
+             accurate heights than from a colour camera"
+        );
+    }
     let (mut reporter, rx, counters) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
     // When no sink can deliver any more, a quiet source's blocked read is
     // woken through the signals' flag (the loop tells the two apart).

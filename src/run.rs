@@ -871,6 +871,7 @@ mod tests {
             },
             fps: (25, 1),
             description: "test".into(),
+            grey: false,
         };
         let checked = StateFile::open(&path, state_capacity(&cfg)).unwrap();
         assert!(!checked.in_use_elsewhere());

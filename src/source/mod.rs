@@ -21,6 +21,10 @@ pub struct SourceInfo {
     pub fps: (u32, u32),
     /// Human-readable description for the `hello` record.
     pub description: String,
+    /// The source has no colour (a `Cmono` Y4M, a V4L2 `GREY` camera): its
+    /// chroma planes are flat, so the chroma foreground test and the
+    /// colour re-identification of tracks have nothing to go on.
+    pub grey: bool,
 }
 
 impl SourceInfo {

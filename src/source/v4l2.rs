@@ -279,6 +279,7 @@ mod device {
                     size.height,
                     String::from_utf8_lossy(&open.fourcc)
                 ),
+                grey: &open.fourcc == b"GREY",
             };
             Ok(V4l2Source {
                 spec,

@@ -369,6 +369,7 @@ impl Y4mSource {
                 "{name} {}x{} {:?}",
                 header.size.width, header.size.height, header.chroma
             ),
+            grey: matches!(header.chroma, Chroma::Mono),
         };
         Ok(Y4mSource {
             reader,

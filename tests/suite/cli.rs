@@ -644,6 +644,34 @@ fn a_run_whose_only_reader_left_stops_by_itself() {
     );
 }
 
+/// A grey source runs, and the log says what it costs (without colour the
+/// chroma foreground test and colour re-identification are blind: on the
+/// plaza clip 18 final heights instead of 25, roll 2.96° against 1.57°).
+#[test]
+fn a_grey_source_is_warned_of() {
+    let dir = common::fresh_dir("cli-a_grey_source_is_warned_of");
+    let mut clip = b"YUV4MPEG2 W64 H48 F25:1 Cmono\n".to_vec();
+    for i in 0..3u8 {
+        clip.extend_from_slice(b"FRAME\n");
+        clip.extend(std::iter::repeat_n(100 + i, 64 * 48));
+    }
+    let path = dir.join("grey.y4m");
+    std::fs::write(&path, clip).unwrap();
+    let out = run(&["run", "--source", &format!("y4m:{}", path.display())]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.lines()
+            .any(|l| l.contains("WARN") && l.contains("grey source")),
+        "{err}"
+    );
+    assert_eq!(records(&out.stdout).last().unwrap()["frames"], 3);
+    // A colour clip says nothing of the kind.
+    let colour = write_clip(&dir, "colour.y4m", 3);
+    let out = run(&["run", "--source", &format!("y4m:{}", colour.display())]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("grey source"));
+}
+
 /// Waits for `child` to exit, for at most `limit`.
 fn wait_at_most(
     child: &mut std::process::Child,

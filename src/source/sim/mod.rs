@@ -197,6 +197,7 @@ impl SimSource {
             },
             fps: (spec.fps, 1),
             description: describe(spec.name, opts, frames),
+            grey: false,
         };
         SimSource {
             info,
