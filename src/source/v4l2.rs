@@ -160,6 +160,8 @@ mod device {
         backoff: Duration,
         next_attempt: Instant,
         frames: u64,
+        /// Buffers dropped for holding less than a frame.
+        short: u64,
         /// Times the device was lost and reopened.
         pub reconnects: u64,
     }
@@ -290,6 +292,7 @@ mod device {
                 backoff: BACKOFF_MIN,
                 next_attempt: Instant::now(),
                 frames: 0,
+                short: 0,
                 reconnects: 0,
             })
         }
@@ -374,19 +377,34 @@ mod device {
                             b"NV12" => convert::nv12_to_420(data, stride, size, frame),
                             _ => convert::grey_strided_to_420(data, stride, size, frame),
                         }
-                        true
+                        None
                     }
-                    _ => false,
+                    need => Some((data.len(), need, stride)),
                 }
             });
             match result {
-                Ok(true) => {
+                Ok(None) => {
                     frame.index = self.frames;
                     self.frames += 1;
                     Ok(Next::Frame)
                 }
-                Ok(false) => {
-                    log::warn!("v4l2: short buffer dropped");
+                Ok(Some((got, need, stride))) => {
+                    self.short += 1;
+                    // A driver that does this once does it at frame rate:
+                    // the first with its sizes, then a count now and then.
+                    if worth_telling(self.short) {
+                        log::warn!(
+                            "v4l2: {} short buffer{} dropped so far (this one {got} bytes, a \
+                             {}x{} frame at stride {stride} needs {}); {} frames delivered",
+                            self.short,
+                            if self.short == 1 { "" } else { "s" },
+                            size.width,
+                            size.height,
+                            // (No allocation: this runs in the loop.)
+                            need.unwrap_or(usize::MAX),
+                            self.frames
+                        );
+                    }
                     Ok(Next::Waiting)
                 }
                 Err(e) => {
@@ -398,9 +416,23 @@ mod device {
     }
 }
 
+/// Whether the `n`th occurrence of a repeated problem is logged: the 1st,
+/// 10th, 100th, 1000th, ... (a log line a second at most for a problem
+/// that comes at frame rate, and rarer as it goes on).
+#[cfg_attr(not(feature = "v4l2"), allow(dead_code))]
+fn worth_telling(n: u64) -> bool {
+    n > 0 && 10u64.pow(n.ilog10()) == n
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_repeated_problem_is_told_at_powers_of_ten() {
+        let told: Vec<u64> = (0..=20_000).filter(|&n| worth_telling(n)).collect();
+        assert_eq!(told, [1, 10, 100, 1000, 10_000]);
+    }
 
     #[test]
     fn spec_parses_and_refuses_bad_options() {
