@@ -229,7 +229,9 @@ pub enum ScaleMode {
     /// error; relative heights do not.
     PopulationPrior(f64),
     /// (b) The camera is mounted this high: heights are absolute, with
-    /// no assumption about the people (the most accurate mode).
+    /// no assumption about the people. In principle the most accurate
+    /// mode; with today's horizon bias it reads heights tall (README,
+    /// "Where it stands").
     CameraHeight(f64),
     /// (c) The first person tracked long enough (8 anchors) has this
     /// height: walk through the scene alone after installation.
