@@ -12,7 +12,9 @@
 //! sum is minimised by the overall mean, so an occluded frame reading
 //! 1.31 m would still pull the answer; truncation keeps the
 //! squared-difference score but caps each outlier's say. The result is the
-//! mean of the inliers of the best draw.
+//! mean of the inliers of the best draw: the heights within `inlier_m` of
+//! that draw's mean (so an inlier may lie more than `inlier_m` from the
+//! result).
 //!
 //! Heights are computed from a track's stored observations with the
 //! current calibration each time they are reported, so a live track's
@@ -34,7 +36,8 @@ pub struct MeasureConfig {
     pub ransac_samples: usize,
     /// RANSAC draws `n_i`.
     pub ransac_iterations: usize,
-    /// Truncation of the squared-difference score and inlier band, metres.
+    /// Truncation of the squared-difference score, and the inlier band
+    /// around the best draw's mean, metres.
     pub inlier_m: f64,
     /// Per-frame heights a track needs before its height is reported, at
     /// most [`crate::track::RING`]: a track keeps only its newest that many

@@ -65,8 +65,9 @@ pub struct Height {
     /// Height, metres.
     pub height_m: f32,
     /// Per-frame measurements behind it: those the RANSAC correction kept
-    /// as inliers (within `measure.inlier_m` of the height), which may be
-    /// fewer than the `measure.min_samples` a height needs measured.
+    /// as inliers (within `measure.inlier_m` of the best RANSAC draw's
+    /// mean; `height_m` is their mean), which may be fewer than the
+    /// `measure.min_samples` a height needs measured.
     pub samples: u32,
     /// Foot point `[u, v]`, pixels (its column within `bbox`).
     pub foot_px: [f32; 2],
