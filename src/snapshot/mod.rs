@@ -678,7 +678,7 @@ impl Snapshot {
     }
 
     /// [`Snapshot::new`] with the file already created (checked at
-    /// start-up, before the source opened).
+    /// start-up, after the source opened, before its first frame is read).
     pub fn with_file(
         cfg: &Config,
         info: &SourceInfo,
