@@ -193,7 +193,7 @@ struct TrainArgs {
     /// Seed of every random choice.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     seed: u64,
-    /// Window size WxH in pixels (default 32x64).
+    /// Window size WxH in pixels, 8..=256 a side, each side a multiple of the HOG and LBP cells (default 32x64).
     #[arg(long)]
     window: Option<String>,
     /// Margin above and below the box, 1/256 of its height, 0..=256 (default 32).
@@ -288,7 +288,7 @@ struct SimArgs {
     /// Seed of everything random in the scene.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     seed: u64,
-    /// Clip length in frames (default: the scene's).
+    /// Clip length in frames, 1..=1000000 (default: the scene's).
     #[arg(long, allow_negative_numbers = true)]
     frames: Option<u64>,
     /// Write the clip as Y4M to this file (`-` for stdout).
