@@ -4,7 +4,10 @@
 # Idempotent: a second run installs nothing and takes about a second.
 #
 #   cross/install.sh          # everything
-#   cross/install.sh --no-vm  # skip qemu-system-arm, busybox, kmod, debootstrap (VM tests)
+#   cross/install.sh --no-vm  # skip the VM tests' packages: qemu-system-arm,
+#                             # busybox-static, kmod, cpio, netcat-openbsd and, for
+#                             # deploy-test.sh, debootstrap, e2fsprogs, qemu-utils,
+#                             # openssh-client
 set -euo pipefail
 
 want_vm=1
