@@ -209,7 +209,8 @@ pub struct RunConfig {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BoardConfig {
-    /// Profile name, logged at start-up; empty on a workstation.
+    /// Profile name, logged at start-up; empty on a workstation. ASCII
+    /// letters, digits, `-` and `_` only.
     pub name: String,
     /// Memory cap for the service, MiB (0 = none).
     pub memory_max_mib: u32,
