@@ -99,7 +99,8 @@ pub struct CalibrateConfig {
     pub emit_focal_change: f64,
     /// Angle change that triggers a calibration record, degrees.
     pub emit_angle_deg: f64,
-    /// Seconds of stream time between state file writes (when changed).
+    /// Seconds of stream time between state file writes, when new anchors
+    /// arrived (whether or not the estimate moved).
     pub state_interval_s: f64,
     /// RANSAC seed (replays are deterministic).
     pub seed: u64,
