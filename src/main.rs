@@ -848,7 +848,7 @@ fn run_source(
             run::StopReason::Signal | run::StopReason::ReadersGone
         );
     let give_up = || late_signal || stop.load(Ordering::Relaxed);
-    reporter.finish_unless(Duration::from_secs(5), give_up);
+    let dropped_final_tracks = reporter.finish_unless(Duration::from_secs(5), give_up);
     let waiting = std::time::Instant::now();
     let mut told = false;
     while !io.is_finished() {
@@ -857,11 +857,21 @@ fn run_source(
             // wait was for: say what the run did here instead.
             log::warn!(
                 "{} frames, stopped by {}; then a signal stopped the wait for the report \
-                 sinks: the records they still held were not delivered",
+                 sinks: the records they still held were not delivered ({} dropped with \
+                 the queue full, {} failed at a sink before)",
                 summary.frames,
-                summary.stopped_by
+                summary.stopped_by,
+                counters.dropped_queue.load(Ordering::Relaxed),
+                counters.dropped_sink.load(Ordering::Relaxed),
             );
-            return exit::UNAVAILABLE;
+            // A bad stream is still the run's first problem (exit 2).
+            return match summary.error {
+                Some(e) => {
+                    log::error!("{e}");
+                    e.exit_code()
+                }
+                None => exit::UNAVAILABLE,
+            };
         }
         if !told && waiting.elapsed() >= Duration::from_secs(1) {
             log::info!(
@@ -914,8 +924,18 @@ fn run_source(
     let finals = counters.dropped_finals.load(Ordering::Relaxed);
     if finals > 0 {
         log::warn!(
-            "{finals} final records (final heights, calibration, bye) were dropped with the queue \
-             full: raise report.held_finals (now {}) or report.queue (now {})",
+            "{finals} final record{} dropped with the queue full ({}): raise \
+             report.held_finals (now {}) or report.queue (now {})",
+            if finals == 1 { " was" } else { "s were" },
+            match dropped_final_tracks.as_slice() {
+                [] => "none of them a height".to_string(),
+                ids => format!(
+                    "final heights of track{} {}{}",
+                    if ids.len() == 1 { "" } else { "s" },
+                    ids.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+                    if (finals as usize) > ids.len() { ", and others" } else { "" }
+                ),
+            },
             cfg.report.held_finals,
             cfg.report.queue
         );

@@ -56,7 +56,14 @@ pub struct Reporter {
     held: VecDeque<Record>,
     held_capacity: usize,
     counters: Arc<Counters>,
+    /// Tracks whose final height was dropped with the queue full (the
+    /// first [`DROPPED_FINALS_NAMED`]; all are counted in
+    /// [`Counters::dropped_finals`]).
+    dropped_final_tracks: heapless::Vec<u32, DROPPED_FINALS_NAMED>,
 }
+
+/// Dropped final heights a [`Reporter`] remembers by track, to name them.
+pub const DROPPED_FINALS_NAMED: usize = 16;
 
 impl Reporter {
     /// A queue of `capacity` records, holding up to `held_finals` final
@@ -70,6 +77,7 @@ impl Reporter {
             held: VecDeque::with_capacity(held_finals),
             held_capacity: held_finals,
             counters: counters.clone(),
+            dropped_final_tracks: heapless::Vec::new(),
         };
         (r, rx, counters)
     }
@@ -77,6 +85,12 @@ impl Reporter {
     /// Shared counters.
     pub fn counters(&self) -> &Arc<Counters> {
         &self.counters
+    }
+
+    /// The tracks whose final height was dropped with the queue full, in
+    /// order (the first [`DROPPED_FINALS_NAMED`]).
+    pub fn dropped_final_tracks(&self) -> &[u32] {
+        &self.dropped_final_tracks
     }
 
     /// Whether every sink's reader has gone ([`Counters::readers_gone`]).
@@ -139,17 +153,38 @@ impl Reporter {
         } else {
             self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
             self.counters.dropped_finals.fetch_add(1, Ordering::Relaxed);
+            // Named now: the end-of-run summary only counts them.
+            if let Record::Height(h) = &record {
+                // Full: the rest are counted, not named.
+                let _ = self.dropped_final_tracks.push(h.track_id);
+            }
+            match &record {
+                Record::Height(h) => log::warn!(
+                    "report: queue full, the final height of track {} ({:.2} m, frame {}) \
+                     was dropped",
+                    h.track_id,
+                    h.height_m,
+                    h.frame
+                ),
+                r => log::warn!("report: queue full, the final {} record was dropped", r.kind()),
+            }
         }
     }
 
     /// End of run: waits (bounded) until held records are queued, then closes the queue.
     pub fn finish(self, timeout: std::time::Duration) {
-        self.finish_unless(timeout, || false);
+        let _ = self.finish_unless(timeout, || false);
     }
 
     /// [`Reporter::finish`], giving up the wait as soon as `give_up` says so
     /// (a signal: the user would rather lose the held records than wait).
-    pub fn finish_unless(mut self, timeout: std::time::Duration, give_up: impl Fn() -> bool) {
+    /// Returns the tracks whose final height was dropped, during the run or
+    /// now (the first [`DROPPED_FINALS_NAMED`]).
+    pub fn finish_unless(
+        mut self,
+        timeout: std::time::Duration,
+        give_up: impl Fn() -> bool,
+    ) -> heapless::Vec<u32, DROPPED_FINALS_NAMED> {
         let deadline = std::time::Instant::now() + timeout;
         while !self.held.is_empty() && std::time::Instant::now() < deadline && !give_up() {
             self.retry_held();
@@ -162,6 +197,12 @@ impl Reporter {
         self.counters
             .dropped_finals
             .fetch_add(left, Ordering::Relaxed);
+        for r in &self.held {
+            if let Record::Height(h) = r {
+                let _ = self.dropped_final_tracks.push(h.track_id);
+            }
+        }
+        self.dropped_final_tracks
     }
 }
 
@@ -381,7 +422,7 @@ mod tests {
             rep.send(final_height(f));
         }
         let t0 = std::time::Instant::now();
-        rep.finish_unless(std::time::Duration::from_secs(3600), || true);
+        let named = rep.finish_unless(std::time::Duration::from_secs(3600), || true);
         // (Not a speed check: it must not sit out the hour.)
         assert!(
             t0.elapsed() < std::time::Duration::from_secs(60),
@@ -389,6 +430,7 @@ mod tests {
         );
         assert_eq!(counters.dropped_queue.load(Ordering::Relaxed), 1);
         assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 1);
+        assert_eq!(named, [1], "the final held to the end is named");
         assert_eq!(rx.try_iter().count(), 2);
         // More finals than the queue and the held list take: the rest are
         // dropped and counted as finals.
@@ -397,8 +439,10 @@ mod tests {
             rep.send(final_height(f));
         }
         assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 3);
-        rep.finish_unless(std::time::Duration::from_secs(3600), || true);
+        assert_eq!(rep.dropped_final_tracks(), [1, 1, 1], "dropped with the queue full");
+        let named = rep.finish_unless(std::time::Duration::from_secs(3600), || true);
         assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 3);
+        assert_eq!(named.len(), 3, "every dropped final height is named");
         assert_eq!(rx.try_iter().count(), 2);
         // Without a signal, the held final goes out once there is room.
         let (mut rep, rx, counters) = Reporter::new(2, 8);

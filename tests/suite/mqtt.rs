@@ -1336,12 +1336,56 @@ fn the_real_pipeline_publishes_what_the_file_sink_writes() {
 #[test]
 fn a_signal_during_the_wait_for_an_absent_broker_still_sums_up_the_run() {
     let dir = temp_dir("mqtt-signal-during-sink-wait");
-    let conf = config_file(&dir, "shutdown_timeout_s = 120.0\nreconnect_max_s = 0.5\n");
+    let (status, log, rest) =
+        signal_during_the_wait(&dir, &["--source", "sim:plaza?seed=1", "--frames", "20"]);
+    assert_eq!(status.code(), Some(3), "{log}{rest}");
+    assert!(
+        rest.contains("20 frames, stopped by frame limit") && rest.contains("were not delivered"),
+        "{log}{rest}"
+    );
+    // The line naming the broker comes before the first failure to reach it.
+    let (named, refused) = (
+        log.find("mqtt: publishing to"),
+        log.find("mqtt: cannot connect"),
+    );
+    assert!(
+        named.is_some() && refused.is_some() && named < refused,
+        "{log}"
+    );
+    // A malformed stream stays the run's first problem: exit 2 with its
+    // error line (the signal's early return had hidden both behind exit 3).
+    let clip = common::synthetic_y4m(
+        stature::frame::Size {
+            width: 64,
+            height: 48,
+        },
+        5,
+    );
+    let cut = dir.join("cut.y4m");
+    std::fs::write(&cut, &clip[..clip.len() - 100]).unwrap();
+    let source = format!("y4m:{}", cut.display());
+    let (status, log, rest) = signal_during_the_wait(&dir, &["--source", &source]);
+    assert_eq!(status.code(), Some(2), "{log}{rest}");
+    assert!(
+        rest.contains("stopped by a source error") && rest.contains("truncated"),
+        "{log}{rest}"
+    );
+}
+
+/// Runs `stature run ARGS` into an MQTT sink nobody listens for, sends
+/// SIGTERM once it waits for that sink at the end; returns the exit status,
+/// the log up to the wait and the log after it.
+fn signal_during_the_wait(
+    dir: &Path,
+    args: &[&str],
+) -> (std::process::ExitStatus, String, String) {
+    let conf = config_file(dir, "shutdown_timeout_s = 120.0\nreconnect_max_s = 0.5\n");
     let mut child = Command::new(common::stature_bin())
         .arg("run")
         .arg("--config")
         .arg(&conf)
-        .args(["--source", "sim:plaza?seed=1", "--frames", "20", "--report"])
+        .args(args)
+        .arg("--report")
         // Nothing listens there: every record stays in the sink.
         .arg(format!("mqtt:127.0.0.1:{}?client_id=away", free_port()))
         .stdout(Stdio::null())
@@ -1374,18 +1418,5 @@ fn a_signal_during_the_wait_for_an_absent_broker_still_sums_up_the_run() {
     };
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
-    assert_eq!(status.code(), Some(3), "{log}{rest}");
-    assert!(
-        rest.contains("20 frames, stopped by frame limit") && rest.contains("were not delivered"),
-        "{log}{rest}"
-    );
-    // The line naming the broker comes before the first failure to reach it.
-    let (named, refused) = (
-        log.find("mqtt: publishing to"),
-        log.find("mqtt: cannot connect"),
-    );
-    assert!(
-        named.is_some() && refused.is_some() && named < refused,
-        "{log}"
-    );
+    (status, log, rest)
 }
