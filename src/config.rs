@@ -489,8 +489,12 @@ impl Config {
                 // Only a file sink doubles the records; a snapshot or a
                 // state file would be interleaved with them.
                 let why = match output.0 {
-                    "run.snapshot" if *why == twice => "the image and the records would be mixed in it",
-                    "run.state" if *why == twice => "the state and the records would be mixed in it",
+                    "run.snapshot" if *why == twice => {
+                        "the image and the records would be mixed in it"
+                    }
+                    "run.state" if *why == twice => {
+                        "the state and the records would be mixed in it"
+                    }
                     _ => why,
                 };
                 return Err(ConfigError::invalid(

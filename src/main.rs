@@ -932,8 +932,15 @@ fn run_source(
                 ids => format!(
                     "final heights of track{} {}{}",
                     if ids.len() == 1 { "" } else { "s" },
-                    ids.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
-                    if (finals as usize) > ids.len() { ", and others" } else { "" }
+                    ids.iter()
+                        .map(u32::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    if (finals as usize) > ids.len() {
+                        ", and others"
+                    } else {
+                        ""
+                    }
                 ),
             },
             cfg.report.held_finals,

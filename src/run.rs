@@ -957,7 +957,10 @@ mod tests {
             (StopReason::Signal, "a signal"),
             (StopReason::SourceError, "a source error"),
             (StopReason::Observer, "the calibration's confidence"),
-            (StopReason::ReadersGone, "the report outputs' readers leaving"),
+            (
+                StopReason::ReadersGone,
+                "the report outputs' readers leaving",
+            ),
         ] {
             assert_eq!(reason.to_string(), words);
         }

@@ -169,5 +169,8 @@ fn min_samples_cannot_exceed_what_a_track_keeps() {
         ..MeasureConfig::default()
     };
     let err = too_many.validate().unwrap_err().to_string();
-    assert!(err.contains("measure.min_samples") && err.contains("1..=128"), "{err}");
+    assert!(
+        err.contains("measure.min_samples") && err.contains("1..=128"),
+        "{err}"
+    );
 }

@@ -166,7 +166,10 @@ impl Reporter {
                     h.height_m,
                     h.frame
                 ),
-                r => log::warn!("report: queue full, the final {} record was dropped", r.kind()),
+                r => log::warn!(
+                    "report: queue full, the final {} record was dropped",
+                    r.kind()
+                ),
             }
         }
     }
@@ -439,7 +442,11 @@ mod tests {
             rep.send(final_height(f));
         }
         assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 3);
-        assert_eq!(rep.dropped_final_tracks(), [1, 1, 1], "dropped with the queue full");
+        assert_eq!(
+            rep.dropped_final_tracks(),
+            [1, 1, 1],
+            "dropped with the queue full"
+        );
         let named = rep.finish_unless(std::time::Duration::from_secs(3600), || true);
         assert_eq!(counters.dropped_finals.load(Ordering::Relaxed), 3);
         assert_eq!(named.len(), 3, "every dropped final height is named");

@@ -1535,7 +1535,10 @@ fn run_outputs_are_refused_when_they_are_its_inputs_or_one_file_twice() {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("the image and the records would be mixed"), "{err}");
+    assert!(
+        err.contains("the image and the records would be mixed"),
+        "{err}"
+    );
     std::fs::remove_file(dir.join("out.png")).unwrap();
     assert_eq!(std::fs::read(&clip).unwrap(), video, "the video is intact");
     assert_eq!(std::fs::read(&a).unwrap(), b"");

@@ -1375,10 +1375,7 @@ fn a_signal_during_the_wait_for_an_absent_broker_still_sums_up_the_run() {
 /// Runs `stature run ARGS` into an MQTT sink nobody listens for, sends
 /// SIGTERM once it waits for that sink at the end; returns the exit status,
 /// the log up to the wait and the log after it.
-fn signal_during_the_wait(
-    dir: &Path,
-    args: &[&str],
-) -> (std::process::ExitStatus, String, String) {
+fn signal_during_the_wait(dir: &Path, args: &[&str]) -> (std::process::ExitStatus, String, String) {
     let conf = config_file(dir, "shutdown_timeout_s = 120.0\nreconnect_max_s = 0.5\n");
     let mut child = Command::new(common::stature_bin())
         .arg("run")
