@@ -1417,3 +1417,31 @@ fn signal_during_the_wait(dir: &Path, args: &[&str]) -> (std::process::ExitStatu
     std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
     (status, log, rest)
 }
+
+/// A broker that stays away makes the sink's buffer overflow: the log says
+/// so when it starts (once per outage), not only in the end-of-run count,
+/// which a service that runs for weeks never reaches.
+#[test]
+fn an_overflowing_buffer_is_logged_when_it_starts() {
+    let dir = temp_dir("mqtt-overflow-told");
+    let conf = config_file(
+        &dir,
+        "buffer = 8\nshutdown_timeout_s = 0.5\nreconnect_max_s = 0.5\n",
+    );
+    let out = Command::new(common::stature_bin())
+        .arg("run")
+        .arg("--config")
+        .arg(&conf)
+        .args(["--source", "sim:plaza?seed=1", "--frames", "60", "--report"])
+        .arg(format!("mqtt:127.0.0.1:{}?client_id=full", free_port()))
+        .stdout(Stdio::null())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let told: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("WARN") && l.contains("it is not taking them"))
+        .collect();
+    assert_eq!(told.len(), 1, "{err}");
+    assert!(told[0].contains("8 records held"), "{err}");
+}

@@ -50,6 +50,10 @@ struct Link {
     last_error: String,
     /// Records dropped here (also added to the shared counters when attached).
     dropped: u64,
+    /// `dropped` when the broker was last reached (or at start).
+    dropped_before: u64,
+    /// The outbox overflowed since then, and the log said so.
+    told_full: bool,
     counters: Option<Arc<Counters>>,
 }
 
@@ -174,6 +178,8 @@ impl MqttSink {
                 exited: false,
                 last_error: String::new(),
                 dropped: 0,
+                dropped_before: 0,
+                told_full: false,
                 counters: None,
             }),
             changed: Condvar::new(),
@@ -227,7 +233,18 @@ impl MqttSink {
         };
         let place = place(record, self.settings.qos);
         let mut link = self.shared.lock();
-        match link.outbox.push(place, record.is_final(), payload.to_vec()) {
+        let pushed = link.outbox.push(place, record.is_final(), payload.to_vec());
+        if pushed != Pushed::Stored && !link.told_full {
+            // Once per outage: a service never reaches the end-of-run count.
+            link.told_full = true;
+            log::warn!(
+                "mqtt: {} records held for {} and it is not taking them: dropping the oldest \
+                 non-final records until it does (report.mqtt.buffer)",
+                self.settings.buffer,
+                self.settings.broker()
+            );
+        }
+        match pushed {
             Pushed::Stored => {}
             Pushed::DroppedOldest => link.drop_records(1),
             Pushed::DroppedNew => link.drop_records(1),
@@ -280,10 +297,11 @@ impl MqttSink {
             log::warn!(
                 "mqtt: {lost} records not delivered to {} before shutdown ({})",
                 self.settings.broker(),
-                if link.last_error.is_empty() {
-                    "broker too slow".to_string()
-                } else {
-                    link.last_error.clone()
+                match (link.last_error.is_empty(), link.connected) {
+                    (false, _) => link.last_error.clone(),
+                    (true, true) => "broker too slow".to_string(),
+                    // A listener that accepts and never answers (no CONNACK).
+                    (true, false) => "no answer to the connection request".to_string(),
                 }
             );
         }
@@ -357,9 +375,11 @@ impl Connector {
                     link.connected = true;
                     backoff = min;
                     let waiting = link.outbox.records();
+                    let lost = link.dropped - link.dropped_before;
+                    (link.dropped_before, link.told_full) = (link.dropped, false);
                     if connected_once || failures > 0 {
                         log::info!(
-                            "mqtt: connected to {} after {failures} failed attempt(s); {waiting} records waiting, {} of them final",
+                            "mqtt: connected to {} after {failures} failed attempt(s); {waiting} records waiting, {} of them final; {lost} dropped meanwhile",
                             self.settings.broker(),
                             link.outbox.finals()
                         );
