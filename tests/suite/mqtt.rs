@@ -1445,3 +1445,35 @@ fn an_overflowing_buffer_is_logged_when_it_starts() {
     assert_eq!(told.len(), 1, "{err}");
     assert!(told[0].contains("8 records held"), "{err}");
 }
+
+/// A listener that accepts the connection and never answers it (no
+/// CONNACK) is named for what it did: it was called "broker too slow".
+#[test]
+fn a_broker_that_never_answers_is_named_so() {
+    let dir = temp_dir("mqtt-never-answers");
+    let conf = config_file(&dir, "shutdown_timeout_s = 0.5\nreconnect_max_s = 0.5\n");
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    // Accepts and holds every connection, says nothing.
+    std::thread::spawn(move || {
+        let mut held = Vec::new();
+        for s in listener.incoming().take(64) {
+            held.push(s);
+        }
+    });
+    let out = Command::new(common::stature_bin())
+        .arg("run")
+        .arg("--config")
+        .arg(&conf)
+        .args(["--source", "sim:plaza?seed=1", "--frames", "20", "--report"])
+        .arg(format!("mqtt:127.0.0.1:{port}?client_id=silent"))
+        .stdout(Stdio::null())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "nothing was delivered: {err}");
+    assert!(
+        err.contains("before shutdown (no answer to the connection request)"),
+        "{err}"
+    );
+}
