@@ -811,6 +811,15 @@ fn run_source(
         info.size.height,
         info.fps_f64()
     );
+    if cfg.report.format == stature::config::Format::Postcard
+        && specs.iter().any(|s| matches!(s, sink::SinkSpec::Stdout))
+        && std::io::IsTerminal::is_terminal(&std::io::stdout())
+    {
+        log::warn!(
+            "report sink stdout: postcard records are binary and standard output is a \
+             terminal: use --format json to read them, or redirect to a file or a program"
+        );
+    }
     if info.grey && cfg.detect.chroma_threshold > 0 {
         log::warn!(
             "grey source: without colour the chroma foreground test and the colour \

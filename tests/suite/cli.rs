@@ -672,6 +672,31 @@ fn a_grey_source_is_warned_of() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("grey source"));
 }
 
+/// Postcard records to a terminal are binary noise on the screen: warned
+/// of at start (`script` gives the run a terminal), and not when standard
+/// output is a pipe, where binary is what a reader expects.
+#[test]
+fn postcard_records_to_a_terminal_are_warned_of() {
+    let cmd = format!("{} run --frames 2 --format postcard", stature_bin());
+    let out = Command::new("script")
+        .args(["-qec", &cmd, "/dev/null"])
+        .stdin(Stdio::null())
+        .output()
+        .expect("script (util-linux) gives the run a terminal");
+    let shown = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{shown}");
+    assert!(
+        shown.contains("postcard records are binary and standard output is a terminal"),
+        "{shown}"
+    );
+    let out = run(&["run", "--frames", "2", "--format", "postcard"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && !err.contains("is a terminal"),
+        "{err}"
+    );
+}
+
 /// Waits for `child` to exit, for at most `limit`.
 fn wait_at_most(
     child: &mut std::process::Child,
