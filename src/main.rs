@@ -270,7 +270,7 @@ struct TrainArgs {
 
 #[derive(Args)]
 struct DemoArgs {
-    /// Frames to run (default: the whole scene).
+    /// Frames to run (default and at most: the whole demo clip, 750).
     #[arg(long, allow_negative_numbers = true)]
     frames: Option<u64>,
     #[command(flatten)]
@@ -994,6 +994,14 @@ fn demo(a: DemoArgs) -> i32 {
             cfg.source.uri,
             total
         );
+        if cfg.run.frames > sim.frames() {
+            say!(
+                "stature demo: the demo clip has {} frames, not the {} asked for \
+                 (`stature run --source 'sim:plaza?seed=1&frames=N'` runs a longer one)",
+                sim.frames(),
+                cfg.run.frames
+            );
+        }
     }
     let mut sim = sim;
     let mut shown;

@@ -697,6 +697,20 @@ fn postcard_records_to_a_terminal_are_warned_of() {
     );
 }
 
+/// `demo --frames` beyond the demo clip runs the clip and says so (it
+/// stopped at 750 frames without a word).
+#[test]
+fn a_demo_asked_for_more_than_its_clip_says_so() {
+    let out = run(&["demo", "--frames", "100000"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("the demo clip has 750 frames, not the 100000 asked for"),
+        "{err}"
+    );
+    assert!(err.contains("(750 frames)"), "{err}");
+}
+
 /// Waits for `child` to exit, for at most `limit`.
 fn wait_at_most(
     child: &mut std::process::Child,
@@ -1202,8 +1216,8 @@ fn a_short_quiet_demo_prints_its_table_and_nothing_else() {
     assert_eq!(out.status.code(), Some(0), "{err}");
     assert!(
         err.contains(
-            "not estimated (too few single-person observations in 20 frames of 750; run more frames)"
-        ),
+            "calibration not estimated: too few single-person observations in 20 frames of 750; run more frames"
+        ) && err.matches("too few single-person observations").count() == 1,
         "{err}"
     );
     assert!(!err.contains("stub"), "{err}");
