@@ -393,6 +393,14 @@ impl Config {
         )?;
         let specs = self.report.sink_specs()?;
         self.report.mqtt.validate()?;
+        // `stature sim --png -` is stdout; a run's stdout carries the records.
+        if self.run.snapshot == "-" {
+            return Err(ConfigError::invalid(
+                "run.snapshot",
+                "-",
+                "`-` is not standard output here (it carries the run's records): give a file path ending in `.png`",
+            ));
+        }
         crate::snapshot::check_path(Path::new(&self.run.snapshot))
             .map_err(|e| ConfigError::invalid("run.snapshot", &self.run.snapshot, e))?;
         self.check_outputs_apart(&specs)?;

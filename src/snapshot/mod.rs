@@ -538,10 +538,6 @@ fn legend(c: &mut Canvas, font: &MonoFont<'_>) {
 /// that trusts it. A path without an extension makes no such claim and
 /// is accepted. Checked with the other settings, before anything opens.
 pub fn check_path(path: &Path) -> Result<(), &'static str> {
-    if path == Path::new("-") {
-        // `stature sim --png -` is stdout; here stdout carries the records.
-        return Err("`-` is not standard output here (it carries the run's records): give a file path ending in `.png`");
-    }
     match path.extension() {
         Some(e) if !e.eq_ignore_ascii_case("png") => {
             Err("only PNG is written: give a path ending in `.png`")
