@@ -659,10 +659,10 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
     }
     // Installed before the source opens: a pipe may take its time to send
     // the Y4M header, and a signal meanwhile should end the run cleanly.
-    let stop = stop_on_signals();
+    let signals = stop_on_signals();
     // Says what is awaited (and, for tests, that the handlers are in place).
     log::info!("opening source {}", cfg.source.uri);
-    match source::open_stoppable(&cfg.source.uri, Some(stop.clone())) {
+    match source::open_stoppable(&cfg.source.uri, Some(signals.wake.clone())) {
         Ok(mut s) => {
             // A file or a simulated clip shows how far the run is.
             let total = match (s.length(), cfg.run.frames) {
@@ -678,7 +678,7 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
                 }
                 _ => s.as_mut(),
             };
-            run_source(cfg, src, &stop, &mut (None, Vec::new()), until_confident)
+            run_source(cfg, src, &signals, &mut (None, Vec::new()), until_confident)
         }
         Err(source::SourceError::Stopped) => {
             log::info!("stopped by a signal before the source had sent its first frame");
@@ -707,16 +707,30 @@ fn run_pipeline(cfg: &Config, until_confident: bool) -> i32 {
 /// left at its default it killed the run with nothing final sent. A SIGHUP
 /// the parent ignores (`nohup stature run ...`, a supervisor's choice) stays
 /// ignored: the caller asked for the run to outlive its terminal.
-fn stop_on_signals() -> Arc<AtomicBool> {
+fn stop_on_signals() -> Signals {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     let stop = Arc::new(AtomicBool::new(false));
+    let wake = Arc::new(AtomicBool::new(false));
     let hangup = (!ignored_from_start(SIGHUP)).then_some(SIGHUP);
     for sig in [Some(SIGINT), Some(SIGTERM), hangup].into_iter().flatten() {
-        if let Err(e) = signal_hook::flag::register(sig, stop.clone()) {
-            log::warn!("cannot install handler for signal {sig}: {e}");
+        for flag in [&stop, &wake] {
+            if let Err(e) = signal_hook::flag::register(sig, flag.clone()) {
+                log::warn!("cannot install handler for signal {sig}: {e}");
+            }
         }
     }
-    stop
+    Signals { stop, wake }
+}
+
+/// The flags the stop signals set.
+struct Signals {
+    /// Set by a signal only: the run was asked to stop.
+    stop: Arc<AtomicBool>,
+    /// Set by a signal, and by the report thread once no sink can deliver
+    /// ([`stature::report::Counters::wake`]): a blocked source read gives
+    /// up when it is set. Apart from `stop`, so that a reader leaving is
+    /// never taken for a signal.
+    wake: Arc<AtomicBool>,
 }
 
 /// Whether `sig` is ignored now, before any handler of ours: a disposition
@@ -748,7 +762,7 @@ type Outcome = (
 fn run_source(
     cfg: &Config,
     src: &mut dyn source::FrameSource,
-    stop: &Arc<AtomicBool>,
+    signals: &Signals,
     outcome: &mut Outcome,
     until_confident: bool,
 ) -> i32 {
@@ -820,7 +834,7 @@ fn run_source(
              terminal: use --format json to read them, or redirect to a file or a program"
         );
     }
-    if info.grey && cfg.detect.chroma_threshold > 0 {
+    if info.grey {
         log::warn!(
             "grey source: without colour the chroma foreground test and the colour \
              re-identification of tracks have nothing to go on; expect fewer and less \
@@ -829,8 +843,9 @@ fn run_source(
     }
     let (mut reporter, rx, counters) = Reporter::new(cfg.report.queue, cfg.report.held_finals);
     // When no sink can deliver any more, a quiet source's blocked read is
-    // woken through the signals' flag (the loop tells the two apart).
-    let _ = counters.wake.set(stop.clone());
+    // woken (through its own flag: `stop` stays the signals').
+    let _ = counters.wake.set(signals.wake.clone());
+    let stop = &*signals.stop;
     let io = report::spawn_io(rx, sinks, cfg.report.format, counters.clone());
     let opts = run::LoopOptions {
         max_frames: cfg.run.frames,
@@ -851,11 +866,8 @@ fn run_source(
     // shutdown_timeout_s for an absent broker). The vision side is done and
     // the state and snapshot are written: a signal now ends the wait, also
     // one that came after the loop's last look (while they were written).
-    let late_signal = stop.swap(false, Ordering::Relaxed)
-        && !matches!(
-            summary.stopped_by,
-            run::StopReason::Signal | run::StopReason::ReadersGone
-        );
+    let late_signal =
+        stop.swap(false, Ordering::Relaxed) && summary.stopped_by != run::StopReason::Signal;
     let give_up = || late_signal || stop.load(Ordering::Relaxed);
     let dropped_final_tracks = reporter.finish_unless(Duration::from_secs(5), give_up);
     let waiting = std::time::Instant::now();
@@ -1012,8 +1024,8 @@ fn demo(a: DemoArgs) -> i32 {
         &mut shown
     };
     let mut outcome = (None, Vec::new());
-    let stop = stop_on_signals();
-    let code = run_source(&cfg, src, &stop, &mut outcome, false);
+    let signals = stop_on_signals();
+    let code = run_source(&cfg, src, &signals, &mut outcome, false);
     let cast = sim.cast();
     // Each final height is matched to the person whose true foot is nearest
     // the track's last foot point in its last frame.

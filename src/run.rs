@@ -526,7 +526,7 @@ pub enum StopReason {
     SourceError,
     /// The [`Observer`] asked for a stop (`stature snapshot` once calibrated).
     Observer,
-    /// Every report sink writes into a pipe whose reader has gone
+    /// The only report sink, standard output, lost its reader
     /// ([`crate::report::Counters::readers_gone`]).
     ReadersGone,
 }
@@ -542,7 +542,7 @@ impl core::fmt::Display for StopReason {
             // The only observer that stops a run is `stature snapshot`'s,
             // once the calibration is confident enough to measure.
             StopReason::Observer => "the calibration's confidence",
-            StopReason::ReadersGone => "the report outputs' readers leaving",
+            StopReason::ReadersGone => "standard output's reader leaving",
         })
     }
 }
@@ -957,10 +957,7 @@ mod tests {
             (StopReason::Signal, "a signal"),
             (StopReason::SourceError, "a source error"),
             (StopReason::Observer, "the calibration's confidence"),
-            (
-                StopReason::ReadersGone,
-                "the report outputs' readers leaving",
-            ),
+            (StopReason::ReadersGone, "standard output's reader leaving"),
         ] {
             assert_eq!(reason.to_string(), words);
         }

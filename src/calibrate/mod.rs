@@ -402,8 +402,9 @@ pub struct Calibrator {
     emitted: Option<Estimate>,
     stability: f64,
     degeneracy_told: Option<Degeneracy>,
-    /// The last refit's degeneracy and how many refits in a row had it.
-    degeneracy_seen: (Option<Degeneracy>, u32),
+    /// The last refit's degeneracy, how many refits in a row had it, and
+    /// the version of the estimate it was read from.
+    degeneracy_seen: (Option<Degeneracy>, u32, u32),
     /// State file writer, if configured.
     pub state: Option<state::StateFile>,
     last_state_write: Option<u64>,
@@ -432,7 +433,7 @@ impl Calibrator {
             emitted: None,
             stability: 0.0,
             degeneracy_told: None,
-            degeneracy_seen: (None, 0),
+            degeneracy_seen: (None, 0, 0),
             state: None,
             last_state_write: None,
             fps: 25.0,
@@ -583,6 +584,14 @@ impl Calibrator {
         }
         if self.state.is_some() {
             self.save_state();
+        }
+        // The final calibration is what the user keeps: a degenerate one is
+        // said however briefly it has been so.
+        if let Some(dg) = self.estimate.and_then(|e| e.degeneracy) {
+            if self.degeneracy_told != Some(dg) {
+                log::warn!("calibration (final): {}", dg.describe());
+                self.degeneracy_told = Some(dg);
+            }
         }
         if let Some(st) = self.state.as_ref().filter(|st| st.in_use_elsewhere()) {
             log::warn!(
@@ -768,19 +777,26 @@ impl Calibrator {
     /// Returns what it logged: the degeneracy warned of, or `None` for the
     /// all-clear (an outer `None`: nothing).
     fn tell_degeneracy(&mut self, est: &Estimate) -> Option<Option<Degeneracy>> {
-        let run = match (est.degeneracy, self.degeneracy_seen) {
-            (Some(dg), (Some(seen), n)) if dg == seen => n.saturating_add(1),
-            (Some(_), _) => 1,
-            (None, _) => 0,
+        let (seen, n, version) = self.degeneracy_seen;
+        if version == est.version {
+            // A refit that failed left the estimate as it was: no new look.
+            return None;
+        }
+        let run = if seen == est.degeneracy {
+            n.saturating_add(1)
+        } else {
+            1
         };
-        self.degeneracy_seen = (est.degeneracy, run);
+        self.degeneracy_seen = (est.degeneracy, run, est.version);
         match (est.degeneracy, self.degeneracy_told) {
             (Some(dg), told) if told != Some(dg) && run >= DEGENERACY_REFITS => {
                 log::warn!("calibration: {}", dg.describe());
                 self.degeneracy_told = Some(dg);
                 Some(Some(dg))
             }
-            (None, Some(_)) => {
+            // As many clean refits to withdraw it: a view near the limit
+            // must not flap between the two.
+            (None, Some(_)) if run >= DEGENERACY_REFITS => {
                 log::info!(
                     "calibration: the view is no longer degenerate (f {:.0} px, tilt {:.1}°)",
                     est.geom.focal(),

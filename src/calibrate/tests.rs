@@ -589,8 +589,9 @@ fn an_oversized_state_file_is_refused_unread_and_set_aside() {
 }
 
 /// A degenerate view is warned of only once it has held for a few refits
-/// (PETS passed through "nearly level" for one early refit), and a warning
-/// is withdrawn when the view stops being degenerate.
+/// (PETS passed through "nearly level" for one early refit), a warning is
+/// withdrawn only after as many clean ones, and a failed refit (the same
+/// estimate again) counts for nothing.
 #[test]
 fn a_passing_degeneracy_is_not_warned_of_and_a_warning_is_withdrawn() {
     let cam = Camera::centred(500.0, 82.0, 0.0, 6.0, 640, 480);
@@ -601,25 +602,39 @@ fn a_passing_degeneracy_is_not_warned_of_and_a_warning_is_withdrawn() {
     let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 4);
     let flagged = *c.estimate().expect("an estimate");
     assert_eq!(flagged.degeneracy, Some(Degeneracy::NearVertical));
-    let clear = Estimate {
-        degeneracy: None,
-        ..flagged
+    let mut version = 0;
+    let mut refit = |degeneracy: Option<Degeneracy>| {
+        version += 1;
+        Estimate {
+            degeneracy,
+            version,
+            ..flagged
+        }
     };
+    let (bad, good) = (Some(Degeneracy::NearVertical), None);
     let mut c = Calibrator::new(&cfg, 640, 480);
     // One degenerate refit between good ones: nothing said.
-    assert_eq!(c.tell_degeneracy(&clear), None);
-    assert_eq!(c.tell_degeneracy(&flagged), None);
-    assert_eq!(c.tell_degeneracy(&clear), None);
-    for _ in 1..DEGENERACY_REFITS {
-        assert_eq!(c.tell_degeneracy(&flagged), None);
+    assert_eq!(c.tell_degeneracy(&refit(good)), None);
+    assert_eq!(c.tell_degeneracy(&refit(bad)), None);
+    assert_eq!(c.tell_degeneracy(&refit(good)), None);
+    // Failed refits leave the same estimate: they do not add up.
+    let same = refit(bad);
+    for _ in 0..2 * DEGENERACY_REFITS {
+        assert_eq!(c.tell_degeneracy(&same), None);
+    }
+    for _ in 2..DEGENERACY_REFITS {
+        assert_eq!(c.tell_degeneracy(&refit(bad)), None);
     }
     // Held for DEGENERACY_REFITS refits: warned of, once.
-    assert_eq!(
-        c.tell_degeneracy(&flagged),
-        Some(Some(Degeneracy::NearVertical))
-    );
-    assert_eq!(c.tell_degeneracy(&flagged), None);
-    // Gone: the all-clear, once.
-    assert_eq!(c.tell_degeneracy(&clear), Some(None));
-    assert_eq!(c.tell_degeneracy(&clear), None);
+    assert_eq!(c.tell_degeneracy(&refit(bad)), Some(bad));
+    assert_eq!(c.tell_degeneracy(&refit(bad)), None);
+    // One clean refit is not enough to withdraw it (no flapping)...
+    assert_eq!(c.tell_degeneracy(&refit(good)), None);
+    assert_eq!(c.tell_degeneracy(&refit(bad)), None);
+    for _ in 1..DEGENERACY_REFITS {
+        assert_eq!(c.tell_degeneracy(&refit(good)), None);
+    }
+    // ...as many as it took to give it: the all-clear, once.
+    assert_eq!(c.tell_degeneracy(&refit(good)), Some(None));
+    assert_eq!(c.tell_degeneracy(&refit(good)), None);
 }

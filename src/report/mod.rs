@@ -31,9 +31,9 @@ pub struct Counters {
     /// Record deliveries that failed at a sink (one per sink per record).
     /// What each sink delivered in the end is its [`SinkTally`].
     pub dropped_sink: AtomicU64,
-    /// Every sink writes into a pipe whose reader has gone (`EPIPE`: the
-    /// stdout of `stature run | head -1`, a FIFO whose reader quit): no
-    /// record can reach anyone any more, so the loop stops.
+    /// The only sink is standard output and its reader has gone (`EPIPE`:
+    /// `stature run | head -1`): no record can reach anyone any more, so
+    /// the loop stops. (A `file:` FIFO whose reader quit may get a new one.)
     pub readers_gone: AtomicBool,
     /// Raised with [`Counters::readers_gone`]: the flag a blocked source
     /// read looks at (the signal handlers' stop flag), so that a quiet
@@ -95,7 +95,7 @@ impl Reporter {
 
     /// Whether every sink's reader has gone ([`Counters::readers_gone`]).
     pub fn readers_gone(&self) -> bool {
-        self.counters.readers_gone.load(Ordering::Relaxed)
+        self.counters.readers_gone.load(Ordering::Acquire)
     }
 
     /// Queues a record without blocking (held finals go first).
@@ -272,7 +272,10 @@ pub fn spawn_io(
                         return;
                     }
                 };
-                let it = sinks.iter_mut().zip(failures.iter_mut()).zip(gone.iter_mut());
+                let it = sinks
+                    .iter_mut()
+                    .zip(failures.iter_mut())
+                    .zip(gone.iter_mut());
                 for (((sink, fails), gone), label) in it.zip(&labels) {
                     if *gone {
                         *fails += 1;
@@ -282,7 +285,11 @@ pub fn spawn_io(
                     if let Err(e) = sink.write(&record, bytes, format) {
                         *fails += 1;
                         counters.dropped_sink.fetch_add(1, Ordering::Relaxed);
-                        *gone = e.kind() == std::io::ErrorKind::BrokenPipe;
+                        // Standard output's reader never comes back; a
+                        // named FIFO takes a new reader (a restarted
+                        // consumer), so a `file:` sink keeps trying.
+                        *gone = e.kind() == std::io::ErrorKind::BrokenPipe
+                            && matches!(sink, Sink::Stdout(_));
                         // Log the first failure and then every 100th, not each one.
                         if *fails == 1 || *fails % 100 == 0 || *gone {
                             let s = if *fails == 1 { "" } else { "s" };
@@ -292,13 +299,14 @@ pub fn spawn_io(
                 }
                 if !gone.is_empty()
                     && gone.iter().all(|&g| g)
-                    && !counters.readers_gone.swap(true, Ordering::Relaxed)
+                    && !counters.readers_gone.swap(true, Ordering::AcqRel)
                 {
                     log::warn!(
-                        "report: the reader of every sink has gone (a closed pipe): stopping the run"
+                        "report: standard output's reader has gone and there is no other sink: \
+                         stopping the run"
                     );
                     if let Some(wake) = counters.wake.get() {
-                        wake.store(true, Ordering::Relaxed);
+                        wake.store(true, Ordering::Release);
                     }
                 }
             };

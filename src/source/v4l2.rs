@@ -393,17 +393,22 @@ mod device {
                     // A driver that does this once does it at frame rate:
                     // the first with its sizes, then a count now and then.
                     if worth_telling(self.short) {
-                        log::warn!(
-                            "v4l2: {} short buffer{} dropped so far (this one {got} bytes, a \
-                             {}x{} frame at stride {stride} needs {}); {} frames delivered",
-                            self.short,
-                            if self.short == 1 { "" } else { "s" },
-                            size.width,
-                            size.height,
-                            // (No allocation: this runs in the loop.)
-                            need.unwrap_or(usize::MAX),
-                            self.frames
-                        );
+                        let s = if self.short == 1 { "" } else { "s" };
+                        let (n, w, h) = (self.short, size.width, size.height);
+                        match need {
+                            Some(need) => log::warn!(
+                                "v4l2: {n} short buffer{s} dropped so far (this one {got} bytes, \
+                                 a {w}x{h} frame at stride {stride} needs {need}); {} frames \
+                                 delivered",
+                                self.frames
+                            ),
+                            None => log::warn!(
+                                "v4l2: {n} buffer{s} dropped so far ({got} bytes: a {w}x{h} \
+                                 frame at stride {stride} has no size this build can read); {} \
+                                 frames delivered",
+                                self.frames
+                            ),
+                        }
                     }
                     Ok(Next::Waiting)
                 }

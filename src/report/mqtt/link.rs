@@ -238,8 +238,8 @@ impl MqttSink {
             // Once per outage: a service never reaches the end-of-run count.
             link.told_full = true;
             log::warn!(
-                "mqtt: {} records held for {} and it is not taking them: dropping the oldest \
-                 non-final records until it does (report.mqtt.buffer)",
+                "mqtt: {} records held for {} and it is not taking them: dropping records \
+                 (the oldest non-final first) until it does (report.mqtt.buffer)",
                 self.settings.buffer,
                 self.settings.broker()
             );
@@ -379,7 +379,7 @@ impl Connector {
                     (link.dropped_before, link.told_full) = (link.dropped, false);
                     if connected_once || failures > 0 {
                         log::info!(
-                            "mqtt: connected to {} after {failures} failed attempt(s); {waiting} records waiting, {} of them final; {lost} dropped meanwhile",
+                            "mqtt: connected to {} after {failures} failed attempt(s); {waiting} records waiting, {} of them final; {lost} dropped since the last connection",
                             self.settings.broker(),
                             link.outbox.finals()
                         );
