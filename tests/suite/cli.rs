@@ -1565,33 +1565,31 @@ fn run_outputs_are_refused_when_they_are_its_inputs_or_one_file_twice() {
         assert_eq!(o.status.code(), Some(2), "{extra:?}: {err}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
-    // Standard output redirected to the file a `file:` sink names, with a
-    // `stdout` sink too.
-    let out = std::fs::File::create(dir.join("out.jsonl")).unwrap();
-    let o = Command::new(stature_bin())
-        .args(["run", "--source", &src, "--report", "stdout", "--report"])
-        .arg(file(&dir.join("out.jsonl")))
-        .stdin(Stdio::null())
-        .stdout(out)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    // Standard output redirected to `path`, with a `stdout` sink: the
+    // stderr of a run with `extra` arguments, which must refuse to start.
+    let refused_on_stdout = |path: &std::path::Path, extra: &[&std::ffi::OsStr]| {
+        let o = Command::new(stature_bin())
+            .args(["run", "--source", &src, "--report", "stdout"])
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(path).unwrap())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        err
+    };
+    // The file a `file:` sink names.
+    let out = dir.join("out.jsonl");
+    let sink = file(&out);
+    let err = refused_on_stdout(&out, &["--report".as_ref(), sink.as_ref()]);
     assert!(
         err.contains("the file standard output") && err.contains("written to it twice"),
         "{err}"
     );
     // A snapshot there would not double the records but mix an image in.
-    let out = std::fs::File::create(dir.join("out.png")).unwrap();
-    let o = Command::new(stature_bin())
-        .args(["run", "--source", &src, "--report", "stdout", "--snapshot"])
-        .arg(dir.join("out.png"))
-        .stdin(Stdio::null())
-        .stdout(out)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let png = dir.join("out.png");
+    let err = refused_on_stdout(&png, &["--snapshot".as_ref(), png.as_os_str()]);
     assert!(
         err.contains("the image and the records would be mixed"),
         "{err}"
