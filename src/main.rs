@@ -885,14 +885,7 @@ fn run_source(
                 counters.dropped_queue.load(Ordering::Relaxed),
                 counters.dropped_sink.load(Ordering::Relaxed),
             );
-            // A bad stream is still the run's first problem (exit 2).
-            return match summary.error {
-                Some(e) => {
-                    log::error!("{e}");
-                    e.exit_code()
-                }
-                None => exit::UNAVAILABLE,
-            };
+            return source_error_exit(summary.error).unwrap_or(exit::UNAVAILABLE);
         }
         if !told && waiting.elapsed() >= Duration::from_secs(1) {
             log::info!(
@@ -968,16 +961,24 @@ fn run_source(
             cfg.report.queue
         );
     }
-    match summary.error {
-        Some(e) => {
-            log::error!("{e}");
-            e.exit_code()
-        }
-        // (The snapshot's own error was logged when it failed.)
-        None if snapshot.is_some_and(|s| matches!(s.result, Some(Err(_)))) => exit::UNAVAILABLE,
-        None if silent_sink => exit::UNAVAILABLE,
-        None => exit::OK,
+    if let Some(code) = source_error_exit(summary.error) {
+        return code;
     }
+    // (The snapshot's own error was logged when it failed.)
+    if snapshot.is_some_and(|s| matches!(s.result, Some(Err(_)))) || silent_sink {
+        exit::UNAVAILABLE
+    } else {
+        exit::OK
+    }
+}
+
+/// The source error that ended a run, logged, and its exit code: a bad
+/// stream stays the run's first problem (exit 2), whatever failed after it.
+fn source_error_exit(error: Option<source::SourceError>) -> Option<i32> {
+    error.map(|e| {
+        log::error!("{e}");
+        e.exit_code()
+    })
 }
 
 fn demo(a: DemoArgs) -> i32 {

@@ -775,7 +775,6 @@ pub fn run_observed(
     };
     let mut error = None;
     let stopped_by = loop {
-        // First: it raises the stop flag too, to wake a blocked read.
         if reporter.readers_gone() {
             break StopReason::ReadersGone;
         }

@@ -588,10 +588,7 @@ impl Calibrator {
         // The final calibration is what the user keeps: a degenerate one is
         // said however briefly it has been so.
         if let Some(dg) = self.estimate.and_then(|e| e.degeneracy) {
-            if self.degeneracy_told != Some(dg) {
-                log::warn!("calibration (final): {}", dg.describe());
-                self.degeneracy_told = Some(dg);
-            }
+            self.warn_of(dg, "calibration (final)");
         }
         if let Some(st) = self.state.as_ref().filter(|st| st.in_use_elsewhere()) {
             log::warn!(
@@ -789,10 +786,8 @@ impl Calibrator {
         };
         self.degeneracy_seen = (est.degeneracy, run, est.version);
         match (est.degeneracy, self.degeneracy_told) {
-            (Some(dg), told) if told != Some(dg) && run >= DEGENERACY_REFITS => {
-                log::warn!("calibration: {}", dg.describe());
-                self.degeneracy_told = Some(dg);
-                Some(Some(dg))
+            (Some(dg), _) if run >= DEGENERACY_REFITS => {
+                self.warn_of(dg, "calibration").then_some(Some(dg))
             }
             // As many clean refits to withdraw it: a view near the limit
             // must not flap between the two.
@@ -807,6 +802,16 @@ impl Calibrator {
             }
             _ => None,
         }
+    }
+
+    /// Warns of `dg` unless it is what was last told; whether it did.
+    fn warn_of(&mut self, dg: Degeneracy, what: &str) -> bool {
+        let new = self.degeneracy_told != Some(dg);
+        if new {
+            log::warn!("{what}: {}", dg.describe());
+            self.degeneracy_told = Some(dg);
+        }
+        new
     }
 
     /// Spatial spread of the anchors' feet: occupied cells of a 4×4 grid

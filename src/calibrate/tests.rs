@@ -177,13 +177,20 @@ fn loitering_person_is_bounded_and_does_not_bias() {
     assert!(c.estimate().is_none_or(|e| e.confidence < 0.3));
 }
 
-#[test]
-fn near_vertical_view_is_flagged() {
+/// A camera looking nearly straight down (82° tilt), 6 m up, and a
+/// configuration that knows its height.
+fn near_vertical_camera() -> (Camera, CalibrateConfig) {
     let cam = Camera::centred(500.0, 82.0, 0.0, 6.0, 640, 480);
     let cfg = CalibrateConfig {
         camera_height_m: 6.0,
         ..Default::default()
     };
+    (cam, cfg)
+}
+
+#[test]
+fn near_vertical_view_is_flagged() {
+    let (cam, cfg) = near_vertical_camera();
     let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 4);
     if let Some(e) = c.estimate() {
         assert_eq!(e.degeneracy, Some(Degeneracy::NearVertical), "{e:?}");
@@ -594,11 +601,7 @@ fn an_oversized_state_file_is_refused_unread_and_set_aside() {
 /// estimate again) counts for nothing.
 #[test]
 fn a_passing_degeneracy_is_not_warned_of_and_a_warning_is_withdrawn() {
-    let cam = Camera::centred(500.0, 82.0, 0.0, 6.0, 640, 480);
-    let cfg = CalibrateConfig {
-        camera_height_m: 6.0,
-        ..Default::default()
-    };
+    let (cam, cfg) = near_vertical_camera();
     let (c, _) = calibrate(&cam, &SynthScene::default(), &cfg, 4);
     let flagged = *c.estimate().expect("an estimate");
     assert_eq!(flagged.degeneracy, Some(Degeneracy::NearVertical));

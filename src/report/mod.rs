@@ -36,8 +36,9 @@ pub struct Counters {
     /// the loop stops. (A `file:` FIFO whose reader quit may get a new one.)
     pub readers_gone: AtomicBool,
     /// Raised with [`Counters::readers_gone`]: the flag a blocked source
-    /// read looks at (the signal handlers' stop flag), so that a quiet
-    /// pipe or camera does not keep the loop from seeing it.
+    /// read looks at (the signals raise it too; it is not their stop
+    /// flag, so a reader leaving is never taken for a signal), so that a
+    /// quiet pipe or camera does not keep the loop from seeing it.
     pub wake: std::sync::OnceLock<Arc<AtomicBool>>,
 }
 
@@ -93,7 +94,8 @@ impl Reporter {
         &self.dropped_final_tracks
     }
 
-    /// Whether every sink's reader has gone ([`Counters::readers_gone`]).
+    /// Whether the only sink, standard output, lost its reader
+    /// ([`Counters::readers_gone`]).
     pub fn readers_gone(&self) -> bool {
         self.counters.readers_gone.load(Ordering::Acquire)
     }
@@ -153,19 +155,19 @@ impl Reporter {
         } else {
             self.counters.dropped_queue.fetch_add(1, Ordering::Relaxed);
             self.counters.dropped_finals.fetch_add(1, Ordering::Relaxed);
-            // Named now: the end-of-run summary only counts them.
-            if let Record::Height(h) = &record {
-                // Full: the rest are counted, not named.
-                let _ = self.dropped_final_tracks.push(h.track_id);
-            }
+            // Named now, and by track at the end of the run.
             match &record {
-                Record::Height(h) => log::warn!(
-                    "report: queue full, the final height of track {} ({:.2} m, frame {}) \
-                     was dropped",
-                    h.track_id,
-                    h.height_m,
-                    h.frame
-                ),
+                Record::Height(h) => {
+                    // Full: the rest are counted, not named.
+                    let _ = self.dropped_final_tracks.push(h.track_id);
+                    log::warn!(
+                        "report: queue full, the final height of track {} ({:.2} m, frame {}) \
+                         was dropped",
+                        h.track_id,
+                        h.height_m,
+                        h.frame
+                    )
+                }
                 r => log::warn!(
                     "report: queue full, the final {} record was dropped",
                     r.kind()

@@ -623,11 +623,7 @@ fn a_run_whose_only_reader_left_stops_by_itself() {
         }
         sent
     });
-    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
-    let mut hello = String::new();
-    std::io::BufRead::read_line(&mut stdout, &mut hello).unwrap();
-    assert!(hello.contains("\"hello\""), "{hello}");
-    drop(stdout);
+    read_hello_and_leave(&mut child);
     // The next record (a status every 125 frames) meets the closed pipe.
     let status = wait_at_most(&mut child, std::time::Duration::from_secs(60))
         .expect("the run kept going after its only reader had left");
@@ -651,15 +647,21 @@ fn a_run_whose_only_reader_left_stops_by_itself() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
-        let mut hello = String::new();
-        std::io::BufRead::read_line(&mut stdout, &mut hello).unwrap();
-        drop(stdout);
+        read_hello_and_leave(&mut child);
         let out = child.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{err}");
         assert!(!err.contains("signal"), "{err}");
     }
+}
+
+/// Reads `child`'s first record (its `hello`) and closes its standard
+/// output, as `| head -1` does.
+fn read_hello_and_leave(child: &mut std::process::Child) {
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut hello = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut hello).unwrap();
+    assert!(hello.contains("\"hello\""), "{hello}");
 }
 
 /// A grey source runs, and the log says what it costs (without colour the
