@@ -50,33 +50,38 @@ fn main() {
     let mut cls = eval::scorer(&model);
     let mut ex = Extractor::new(&model.layout);
     let mut rows: Vec<Row> = Vec::new();
-    let mut score =
-        |origin, scene, frame, luma: stature::frame::Plane<'_>, boxes: &[samples::Labelled]| {
-            for s in boxes {
-                let v = cls.classify_box(luma, &s.bbox);
-                let win = if ex.extract(luma, &s.bbox).is_some() {
-                    ex.window().to_vec()
-                } else {
-                    Vec::new()
-                };
-                rows.push(Row {
-                    frame,
-                    origin,
-                    scene,
-                    kind: s.kind,
-                    bbox: s.bbox,
-                    score: v.score,
-                    win,
-                });
-            }
-        };
+    let masks = model.layout.mask_fill;
+    let mut score = |origin,
+                     scene,
+                     frame,
+                     luma: stature::frame::Plane<'_>,
+                     mask: Option<&stature::detect::morphology::BitMask>,
+                     boxes: &[samples::Labelled]| {
+        for s in boxes {
+            let v = cls.classify_box_masked(luma, mask, &s.bbox);
+            let win = if ex.extract(luma, &s.bbox).is_some() {
+                ex.window().to_vec()
+            } else {
+                Vec::new()
+            };
+            rows.push(Row {
+                frame,
+                origin,
+                scene,
+                kind: s.kind,
+                bbox: s.bbox,
+                score: v.score,
+                win,
+            });
+        }
+    };
     let data = stature::dataset::shared_data_dir().expect("../shared/data");
-    eval::for_held_out_pets(&data, 1, |f, luma, boxes| {
-        score(Origin::Pets, "pets", f, luma, boxes)
+    eval::for_held_out_pets(&data, 1, masks, |f, luma, mask, boxes| {
+        score(Origin::Pets, "pets", f, luma, mask, boxes)
     })
     .unwrap();
-    eval::for_held_out_sim(1, |scene, f, luma, boxes| {
-        score(Origin::Sim, scene, f as u32, luma, boxes)
+    eval::for_held_out_sim(1, masks, |scene, f, luma, mask, boxes| {
+        score(Origin::Sim, scene, f as u32, luma, mask, boxes)
     })
     .unwrap();
     let right = |r: &Row| r.kind.positive() == (r.score > 0.0);

@@ -221,6 +221,9 @@ struct TrainArgs {
     /// Square-root compression of the HOG values (default false).
     #[arg(long)]
     hog_sqrt: Option<bool>,
+    /// Foreground-fill features from the detector's mask (default false).
+    #[arg(long)]
+    mask_fill: Option<bool>,
     /// Feature set: hog+lbp, hog or lbp.
     #[arg(long, default_value = "hog+lbp")]
     features: String,
@@ -1636,6 +1639,7 @@ fn train_options(
     };
     layout.hog_coarse = a.coarse.unwrap_or(d.hog_coarse);
     layout.hog_sqrt = a.hog_sqrt.unwrap_or(d.hog_sqrt);
+    layout.mask_fill = a.mask_fill.unwrap_or(d.mask_fill);
     match a.features.as_str() {
         "hog+lbp" => {}
         "hog" => layout.lbp_cells.fill(false),

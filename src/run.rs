@@ -376,9 +376,11 @@ impl Pipeline {
         st.run(Stage::Classify, || {
             self.verdicts.clear();
             let luma = self.frame.luma();
+            let mask = self.detector.mask();
             let regions = self.regions.regions();
             for region in regions.iter().take(self.max_classified) {
-                self.verdicts.push(self.classifier.classify(luma, region));
+                self.verdicts
+                    .push(self.classifier.classify_masked(luma, mask, region));
             }
             self.classifier
                 .note_skipped(regions.len().saturating_sub(self.max_classified));

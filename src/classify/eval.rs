@@ -8,6 +8,7 @@ use super::svm::Model;
 use super::train::{for_pets_frames, PETS_TRAIN_LAST, SIM_EVAL_SEEDS, SIM_SCENES, SIM_STRIDE};
 use super::{Classifier, ClassifyConfig};
 use crate::dataset;
+use crate::detect::morphology::BitMask;
 use crate::frame::Plane;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -213,18 +214,25 @@ pub const EVAL_PER_FRAME: PerFrame = PerFrame {
 pub fn for_held_out_pets(
     data_dir: &Path,
     seed: u64,
-    mut each: impl FnMut(u32, Plane<'_>, &[Labelled]),
+    masks: bool,
+    mut each: impl FnMut(u32, Plane<'_>, Option<&BitMask>, &[Labelled]),
 ) -> Result<(), String> {
     let gt = dataset::load_pets_gt(data_dir)?;
     let mut rng = Rng::new(seed.wrapping_add(1000));
     let mut boxes = Vec::new();
-    for_pets_frames(data_dir, PETS_TRAIN_LAST + 1, 794, |f, luma| {
-        boxes.clear();
-        let g = dataset::boxes_of_frame(&gt, f);
-        let per = EVAL_PER_FRAME;
-        samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
-        each(f, luma, &boxes);
-    })
+    for_pets_frames(
+        data_dir,
+        PETS_TRAIN_LAST + 1,
+        794,
+        masks,
+        |f, luma, mask| {
+            boxes.clear();
+            let g = dataset::boxes_of_frame(&gt, f);
+            let per = EVAL_PER_FRAME;
+            samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
+            each(f, luma, mask, &boxes);
+        },
+    )
 }
 
 /// Calls `each(scene, frame, luma, boxes)` for every `SIM_STRIDE`-th frame
@@ -232,15 +240,22 @@ pub fn for_held_out_pets(
 /// with its labelled boxes, drawn as for [`for_held_out_pets`].
 pub fn for_held_out_sim(
     seed: u64,
-    mut each: impl FnMut(&'static str, u64, Plane<'_>, &[Labelled]),
+    masks: bool,
+    mut each: impl FnMut(&'static str, u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
 ) -> Result<(), String> {
     let mut rng = Rng::new(seed.wrapping_add(2000));
     for scene in SIM_SCENES {
         for &s in SIM_EVAL_SEEDS {
             let per = EVAL_PER_FRAME;
-            samples::sim::for_sim_frames(scene, s, SIM_STRIDE, per, &mut rng, |f, luma, boxes| {
-                each(scene, f, luma, boxes)
-            })?;
+            samples::sim::for_sim_frames(
+                scene,
+                s,
+                SIM_STRIDE,
+                per,
+                &mut rng,
+                masks,
+                |f, luma, mask, boxes| each(scene, f, luma, mask, boxes),
+            )?;
         }
     }
     Ok(())
@@ -263,10 +278,11 @@ fn score_into(
     origin: Origin,
     frame: u32,
     luma: Plane<'_>,
+    mask: Option<&BitMask>,
     boxes: &[Labelled],
 ) {
     for b in boxes {
-        let v = cls.classify_box(luma, &b.bbox);
+        let v = cls.classify_box_masked(luma, mask, &b.bbox);
         ev.rows.push(Scored {
             origin,
             kind: b.kind,
@@ -281,8 +297,9 @@ fn score_into(
 pub fn evaluate_pets(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
     let mut cls = scorer(model);
     let mut ev = Evaluation::default();
-    for_held_out_pets(data_dir, seed, |f, luma, boxes| {
-        score_into(&mut ev, &mut cls, Origin::Pets, f, luma, boxes)
+    let masks = model.layout.mask_fill;
+    for_held_out_pets(data_dir, seed, masks, |f, luma, mask, boxes| {
+        score_into(&mut ev, &mut cls, Origin::Pets, f, luma, mask, boxes)
     })?;
     Ok(ev)
 }
@@ -291,8 +308,9 @@ pub fn evaluate_pets(data_dir: &Path, model: &Model, seed: u64) -> Result<Evalua
 pub fn evaluate_sim(model: &Model, seed: u64) -> Result<Evaluation, String> {
     let mut cls = scorer(model);
     let mut ev = Evaluation::default();
-    for_held_out_sim(seed, |_, f, luma, boxes| {
-        score_into(&mut ev, &mut cls, Origin::Sim, f as u32, luma, boxes)
+    let masks = model.layout.mask_fill;
+    for_held_out_sim(seed, masks, |_, f, luma, mask, boxes| {
+        score_into(&mut ev, &mut cls, Origin::Sim, f as u32, luma, mask, boxes)
     })?;
     Ok(ev)
 }

@@ -27,6 +27,15 @@
 //!    [`super::window::aspect_features`]): the window hides how wide the
 //!    box was, and a linear SVM can then learn that a box twice as wide as
 //!    tall is no single person.
+//! 5. **Foreground fill** (when [`Layout::mask_fill`]): the detector's
+//!    cleaned foreground mask sampled over the same window (nearest pixel),
+//!    cut into [`MASK_CELL`]-pixel cells row-major, each the share of its
+//!    pixels that are foreground; then one feature that is 255 when a mask
+//!    was given and 0 when not (still crops have no mask: their fill
+//!    features are 0 and this one lets the bias tell them apart). The
+//!    window shows texture; the fill shows the silhouette, which separates
+//!    two people in one box (background between them) and a dog's body
+//!    from a person's legs where gradients alone do not.
 //!
 //! Every feature is a `u8`, 255 meaning 1.0 of its normalised scale.
 //! [`Layout::hash`] fingerprints all of this (plus [`FEATURE_VERSION`]) so a
@@ -47,6 +56,9 @@ pub const FEATURE_VERSION: u32 = 3;
 /// 0.52, 0.68, 0.90, 1.20, 1.60): people are 0.2–0.6, side-by-side groups
 /// and fragments 0.5–1.6, cars 1.8 and more.
 pub const ASPECT_CENTRES_Q8: [u32; 8] = [56, 77, 102, 133, 174, 230, 307, 410];
+/// Side of the foreground-fill cells, window pixels (4 measured better
+/// than 8 on the held-out sets: `bench/RESULTS.md`).
+pub const MASK_CELL: usize = 4;
 
 /// How a region box becomes the window.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,6 +134,9 @@ pub struct Layout {
     /// coarse blocks (see [`super::hog`]; off in the shipped layout: it
     /// measured no gain, `bench/RESULTS.md`).
     pub hog_sqrt: bool,
+    /// Foreground-fill features from the detector's mask (needs both
+    /// window sides divisible by [`MASK_CELL`]).
+    pub mask_fill: bool,
 
     /// One flag per HOG block (row-major): computed and fed to the SVM.
     pub hog_blocks: Vec<bool>,
@@ -150,6 +165,7 @@ impl Layout {
             aspect_bins: 0,
             hog_coarse: false,
             hog_sqrt: false,
+            mask_fill: false,
             hog_blocks: Vec::new(),
             lbp_cells: Vec::new(),
         };
@@ -205,6 +221,13 @@ impl Layout {
         if self.hog_coarse && (cx % 2 != 0 || cy % 2 != 0 || cx < 4 || cy < 4) {
             return Err(LayoutError(format!(
                 "coarse HOG needs an even number of cells a side, at least 4 ({cx}x{cy})"
+            )));
+        }
+        let cell = MASK_CELL as u16;
+        if self.mask_fill && (self.win_w % cell != 0 || self.win_h % cell != 0) {
+            return Err(LayoutError(format!(
+                "foreground fill needs window sides divisible by {MASK_CELL} ({}x{})",
+                self.win_w, self.win_h
             )));
         }
         if self.margin_q8 > 256 {
@@ -285,14 +308,38 @@ impl Layout {
     pub fn lbp_dim(&self) -> usize {
         self.selected_lbp_cells() * LBP_BINS
     }
-    /// Flags byte of the header: bit 0 coarse HOG, bit 1 square-root HOG
-    /// (the other bits are 0).
+    /// Foreground-fill cells (columns, rows); (0, 0) when off.
+    pub fn mask_grid(&self) -> (usize, usize) {
+        if !self.mask_fill {
+            return (0, 0);
+        }
+        (
+            usize::from(self.win_w) / MASK_CELL,
+            usize::from(self.win_h) / MASK_CELL,
+        )
+    }
+    /// Length of the foreground-fill part of the vector (cells plus the
+    /// "mask given" feature).
+    pub fn mask_dim(&self) -> usize {
+        let (cx, cy) = self.mask_grid();
+        if self.mask_fill {
+            cx * cy + 1
+        } else {
+            0
+        }
+    }
+    /// Flags byte of the header: bit 0 coarse HOG, bit 1 square-root HOG,
+    /// bit 2 foreground fill (the other bits are 0).
     pub fn flags(&self) -> u8 {
-        u8::from(self.hog_coarse) | u8::from(self.hog_sqrt) << 1
+        u8::from(self.hog_coarse) | u8::from(self.hog_sqrt) << 1 | u8::from(self.mask_fill) << 2
     }
     /// Feature vector length.
     pub fn dim(&self) -> usize {
-        self.hog_dim() + self.coarse_dim() + self.lbp_dim() + usize::from(self.aspect_bins)
+        self.hog_dim()
+            + self.coarse_dim()
+            + self.lbp_dim()
+            + usize::from(self.aspect_bins)
+            + self.mask_dim()
     }
 
     /// Canonical bytes that define the layout (what [`Layout::hash`] hashes
@@ -328,7 +375,7 @@ impl Layout {
     /// One line for reports: sizes, selection, dimension and hash.
     pub fn describe(&self) -> String {
         format!(
-            "window {}x{} ({:?} fit), margin {}/256, HOG cell {} ({} of {} blocks, {} coarse), LBP cell {} ({} of {} cells, threshold {}), {} box-shape bins{}, dim {}, layout hash {:016x}",
+            "window {}x{} ({:?} fit), margin {}/256, HOG cell {} ({} of {} blocks, {} coarse), LBP cell {} ({} of {} cells, threshold {}), {} box-shape bins{}{}, dim {}, layout hash {:016x}",
             self.win_w,
             self.win_h,
             self.fit,
@@ -343,6 +390,7 @@ impl Layout {
             self.lbp_threshold,
             self.aspect_bins,
             if self.hog_sqrt { ", square-root HOG" } else { "" },
+            if self.mask_fill { ", foreground fill" } else { "" },
             self.dim(),
             self.hash()
         )
@@ -434,6 +482,7 @@ mod tests {
             |l: &mut Layout| l.aspect_bins = 0,
             |l: &mut Layout| l.hog_coarse = false,
             |l: &mut Layout| l.hog_sqrt = true,
+            |l: &mut Layout| l.mask_fill = true,
         ] {
             let mut c = a.clone();
             change(&mut c);

@@ -10,6 +10,7 @@
 //! [`Classifier`] is built: no allocation per region or frame.
 
 use crate::config::{check_range, ConfigError};
+use crate::detect::morphology::BitMask;
 use crate::detect::{BBox, Region};
 use crate::frame::Plane;
 use core::fmt;
@@ -197,6 +198,19 @@ impl Extractor {
     /// and right swapped; the window is sampled as usual and flipped before
     /// the features are computed: training augmentation).
     pub fn extract_flipped(&mut self, luma: Plane<'_>, bbox: &BBox, flip: bool) -> Option<&[u8]> {
+        self.extract_with_mask(luma, None, bbox, flip)
+    }
+
+    /// [`Extractor::extract_flipped`] with the detector's foreground mask
+    /// of the same frame, for a layout with foreground-fill features
+    /// (ignored otherwise; `None` gives the "no mask" features).
+    pub fn extract_with_mask(
+        &mut self,
+        luma: Plane<'_>,
+        mask: Option<&BitMask>,
+        bbox: &BBox,
+        flip: bool,
+    ) -> Option<&[u8]> {
         let rect = window::window_rect(bbox, &self.layout);
         if !self.sampler.sample(luma, &rect, &mut self.win) {
             return None;
@@ -223,7 +237,11 @@ impl Extractor {
             self.lbp
                 .features(&self.layout.lbp_cells, &mut self.features[cd..ld]);
         }
-        window::aspect_features(bbox, &mut self.features[ld..]);
+        let ad = ld + usize::from(self.layout.aspect_bins);
+        window::aspect_features(bbox, &mut self.features[ld..ad]);
+        if self.layout.mask_fill {
+            window::mask_features(mask, &rect, &self.layout, flip, &mut self.features[ad..]);
+        }
         Some(&self.features)
     }
 }
@@ -286,9 +304,26 @@ impl Classifier {
         self.classify_box(luma, &region.bbox)
     }
 
+    /// Classifies one region of the luma plane, with the detector's
+    /// foreground mask of the same frame (used when the weights have
+    /// foreground-fill features).
+    pub fn classify_masked(&mut self, luma: Plane<'_>, mask: &BitMask, region: &Region) -> Verdict {
+        self.classify_box_masked(luma, Some(mask), &region.bbox)
+    }
+
     /// Classifies a box of the luma plane (what [`Classifier::classify`]
     /// does with the region's bounding box).
     pub fn classify_box(&mut self, luma: Plane<'_>, bbox: &BBox) -> Verdict {
+        self.classify_box_masked(luma, None, bbox)
+    }
+
+    /// [`Classifier::classify_box`] with an optional foreground mask.
+    pub fn classify_box_masked(
+        &mut self,
+        luma: Plane<'_>,
+        mask: Option<&BitMask>,
+        bbox: &BBox,
+    ) -> Verdict {
         if bbox.height() < self.min_height {
             self.counters.too_small += 1;
             return Verdict {
@@ -296,7 +331,7 @@ impl Classifier {
                 single_human: false,
             };
         }
-        let Some(x) = self.extractor.extract(luma, bbox) else {
+        let Some(x) = self.extractor.extract_with_mask(luma, mask, bbox, false) else {
             return Verdict {
                 score: f32::NEG_INFINITY,
                 single_human: false,

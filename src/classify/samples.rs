@@ -14,8 +14,9 @@
 //! Everything is drawn from a seeded [`Rng`], so a run is reproducible.
 
 use crate::dataset::GtBox;
-use crate::detect::BBox;
-use crate::frame::Plane;
+use crate::detect::morphology::BitMask;
+use crate::detect::{BBox, DetectConfig, Detector, RegionSet};
+use crate::frame::{Frame, Plane, Size};
 use std::path::Path;
 
 /// SplitMix64: small, fast and good enough for sampling boxes.
@@ -482,12 +483,37 @@ mod tests {
     }
 }
 
+/// The detector's cleaned foreground mask of every frame of a clip, for
+/// layouts with foreground-fill features (default detection settings, as
+/// the loop runs them); does nothing when off.
+pub struct Masker {
+    detector: Option<(Detector, RegionSet)>,
+}
+
+impl Masker {
+    /// A detector for frames of `size` when `on`.
+    pub fn new(on: bool, size: Size) -> Self {
+        let detector = on.then(|| {
+            let cfg = DetectConfig::default();
+            let regions = RegionSet::with_capacity(cfg.region_capacity(), cfg.run_capacity(size));
+            (Detector::new(&cfg, size), regions)
+        });
+        Masker { detector }
+    }
+    /// Feeds the next frame of the clip (every frame, in order) and returns
+    /// its mask, or `None` when off.
+    pub fn update(&mut self, frame: &Frame) -> Option<&BitMask> {
+        let (d, regions) = self.detector.as_mut()?;
+        d.process(frame, regions);
+        Some(d.mask())
+    }
+}
+
 /// Labelled boxes of simulated scenes: [`frame_samples`] on the people in
 /// view (a person less than 85 % visible counts as hidden), plus every car
 /// and dog at least half visible as a negative of its kind.
 pub mod sim {
     use super::*;
-    use crate::frame::Frame;
     use crate::source::sim::people::Kind as SimKind;
     use crate::source::sim::{ObjectTruth, SimSource};
 
@@ -520,7 +546,8 @@ pub mod sim {
         seed: u64,
         stride: u64,
         rng: &mut Rng,
-        mut each: impl FnMut(u64, Plane<'_>, &[Labelled]),
+        masks: bool,
+        mut each: impl FnMut(u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
     ) -> Result<(), String> {
         let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
         let spans: Vec<(u64, u64)> = src
@@ -531,20 +558,26 @@ pub mod sim {
             .collect();
         let size = crate::source::FrameSource::info(&src).size;
         let mut frame = Frame::new(size);
+        let mut masker = Masker::new(masks, size);
         let mut out = Vec::new();
-        let mut k = 0;
+        let (mut k, mut next) = (0, 0);
         while k < src.frames() {
-            if !spans.iter().any(|&(a, b)| (a..=b).contains(&k)) {
+            let wanted = k >= next && spans.iter().any(|&(a, b)| (a..=b).contains(&k));
+            if !wanted && !masks {
                 k += 1;
                 continue;
             }
             src.render(k, &mut frame);
-            out.clear();
-            for o in src.truth() {
-                out.extend(animal_sample(o, rng, size.width, size.height));
+            let mask = masker.update(&frame);
+            if wanted {
+                out.clear();
+                for o in src.truth() {
+                    out.extend(animal_sample(o, rng, size.width, size.height));
+                }
+                each(k, frame.luma(), mask, &out);
+                next = k + stride;
             }
-            each(k, frame.luma(), &out);
-            k += stride;
+            k += 1;
         }
         Ok(())
     }
@@ -557,15 +590,22 @@ pub mod sim {
         stride: u64,
         per: PerFrame,
         rng: &mut Rng,
-        mut each: impl FnMut(u64, Plane<'_>, &[Labelled]),
+        masks: bool,
+        mut each: impl FnMut(u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
     ) -> Result<(), String> {
         let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
         let size = crate::source::FrameSource::info(&src).size;
         let mut frame = Frame::new(size);
+        let mut masker = Masker::new(masks, size);
         let mut out = Vec::new();
         let mut k = 0;
         while k < src.frames() {
             src.render(k, &mut frame);
+            let mask = masker.update(&frame);
+            if k % stride != 0 {
+                k += 1;
+                continue;
+            }
             let mut people = Vec::new();
             let mut hidden = Vec::new();
             let mut others = Vec::new();
@@ -589,8 +629,8 @@ pub mod sim {
                 rng,
                 &mut out,
             );
-            each(k, frame.luma(), &out);
-            k += stride;
+            each(k, frame.luma(), mask, &out);
+            k += if masks { 1 } else { stride };
         }
         Ok(())
     }
@@ -602,14 +642,21 @@ pub mod sim {
         #[test]
         fn animal_frames_give_only_cars_and_dogs() {
             let (mut frames, mut dogs) = (0, 0);
-            for_animal_frames("plaza", 1, 5, &mut Rng::new(1), |_, luma, boxes| {
-                frames += 1;
-                assert_eq!((luma.width, luma.height), (640, 480));
-                for b in boxes {
-                    assert!(matches!(b.kind, Kind::Dog | Kind::Car), "{b:?}");
-                    dogs += usize::from(b.kind == Kind::Dog);
-                }
-            })
+            for_animal_frames(
+                "plaza",
+                1,
+                5,
+                &mut Rng::new(1),
+                false,
+                |_, luma, _, boxes| {
+                    frames += 1;
+                    assert_eq!((luma.width, luma.height), (640, 480));
+                    for b in boxes {
+                        assert!(matches!(b.kind, Kind::Dog | Kind::Car), "{b:?}");
+                        dogs += usize::from(b.kind == Kind::Dog);
+                    }
+                },
+            )
             .unwrap();
             // The plaza has a dog; only frames with it in view are rendered.
             assert!(frames > 5 && frames < 150, "{frames}");

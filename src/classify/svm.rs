@@ -22,7 +22,7 @@
 //! | 26 | 1 | LBP threshold, grey levels |
 //! | 27 | 1 | fit: 0 = contain, 1 = height ([`Fit`]) |
 //! | 28 | 1 | box-shape bins (0 or 8) |
-//! | 29 | 1 | flags: bit 0 coarse HOG ([`Layout::hog_coarse`]), bit 1 square-root HOG ([`Layout::hog_sqrt`]), others 0 |
+//! | 29 | 1 | flags: bit 0 coarse HOG ([`Layout::hog_coarse`]), bit 1 square-root HOG ([`Layout::hog_sqrt`]), bit 2 foreground fill ([`Layout::mask_fill`]), others 0 |
 //! | 30 | 1 | weight type: 1 = i8 |
 //! | 31 | 1 | reserved, 0 |
 //! | 32 | 4 | feature code version ([`FEATURE_VERSION`]) |
@@ -305,7 +305,7 @@ impl Model {
         layout.fit = Fit::from_code(b[27])
             .ok_or_else(|| WeightsError::Layout(format!("unknown fit code {}", b[27])))?;
         layout.aspect_bins = b[28];
-        if b[29] & !3 != 0 {
+        if b[29] & !7 != 0 {
             return Err(WeightsError::Layout(format!(
                 "unknown layout flags {:#04x}",
                 b[29]
@@ -313,6 +313,7 @@ impl Model {
         }
         layout.hog_coarse = b[29] & 1 != 0;
         layout.hog_sqrt = b[29] & 2 != 0;
+        layout.mask_fill = b[29] & 4 != 0;
         let (nb, nc) = (le16(b, 56) as usize, le16(b, 58) as usize);
         if nb != layout.hog_block_count() || nc != layout.lbp_cell_count() {
             return Err(WeightsError::Layout(format!(

@@ -31,6 +31,7 @@ use super::solver::{accuracy, cross_validate, solve, Data, KindWeights, Linear};
 use super::svm::Model;
 use super::Extractor;
 use crate::dataset;
+use crate::detect::morphology::BitMask;
 use crate::frame::{Frame, Plane};
 use crate::source::{FrameSource, Next};
 use std::fmt::Write as _;
@@ -122,15 +123,19 @@ pub fn parse_seeds(spec: &str) -> Result<Vec<u64>, String> {
 /// `C` values tried by cross-validation.
 pub const C_GRID: [f64; 4] = [0.01, 0.03, 0.1, 0.3];
 
-/// Calls `each(frame_index, luma)` for PETS frames `first..=last`.
+/// Calls `each(frame_index, luma, mask)` for PETS frames `first..=last`;
+/// with `masks`, the detector runs on every frame from 0 and `mask` is its
+/// foreground mask (see [`samples::Masker`]).
 pub fn for_pets_frames(
     data_dir: &Path,
     first: u32,
     last: u32,
-    mut each: impl FnMut(u32, Plane<'_>),
+    masks: bool,
+    mut each: impl FnMut(u32, Plane<'_>, Option<&BitMask>),
 ) -> Result<(), String> {
     let mut src = dataset::pets_video(data_dir).map_err(|e| e.to_string())?;
     let mut frame = Frame::new(src.info().size);
+    let mut masker = samples::Masker::new(masks, src.info().size);
     let mut k = 0u32;
     while k <= last {
         match src.next_frame(&mut frame).map_err(|e| e.to_string())? {
@@ -138,8 +143,9 @@ pub fn for_pets_frames(
             Next::Waiting => continue,
             Next::End => break,
         }
+        let mask = masker.update(&frame);
         if k >= first {
-            each(k, frame.luma());
+            each(k, frame.luma(), mask);
         }
         k += 1;
     }
@@ -153,10 +159,12 @@ pub fn for_pets_frames(
 
 /// Adds the features of one labelled box (and of its mirror image, for a
 /// person when `mirror` is set).
+#[allow(clippy::too_many_arguments)]
 fn push_sample(
     d: &mut Data,
     ex: &mut Extractor,
     luma: Plane<'_>,
+    mask: Option<&BitMask>,
     s: &Labelled,
     mirror: bool,
     origin: Origin,
@@ -168,7 +176,7 @@ fn push_sample(
         &[false]
     };
     for &flip in flips {
-        if let Some(x) = ex.extract_flipped(luma, &s.bbox, flip) {
+        if let Some(x) = ex.extract_with_mask(luma, mask, &s.bbox, flip) {
             d.push(x, s.kind, origin, fold);
         }
     }
@@ -210,7 +218,8 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
     };
     let mut boxes = Vec::new();
     log::info!("training set: PETS frames 0..={PETS_TRAIN_LAST}");
-    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, |f, luma| {
+    let masks = ex.layout().mask_fill;
+    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, masks, |f, luma, mask| {
         if f % o.pets_stride != 0 {
             return;
         }
@@ -219,7 +228,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
         let fold = (f * 5 / (PETS_TRAIN_LAST + 1)) as u8;
         for s in &boxes {
-            push_sample(&mut d, ex, luma, s, o.mirror, Origin::Pets, fold);
+            push_sample(&mut d, ex, luma, mask, s, o.mirror, Origin::Pets, fold);
         }
     })?;
     for (k, scene) in SIM_SCENES.iter().enumerate() {
@@ -231,9 +240,11 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
                 SIM_STRIDE,
                 per,
                 &mut rng,
-                |_, luma, boxes| {
+                masks,
+                |_, luma, mask, boxes| {
                     for s in boxes {
-                        push_sample(&mut d, ex, luma, s, o.mirror, Origin::Sim, (k % 5) as u8);
+                        let fold = (k % 5) as u8;
+                        push_sample(&mut d, ex, luma, mask, s, o.mirror, Origin::Sim, fold);
                     }
                 },
             )?;
@@ -249,9 +260,11 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
                 seed,
                 SIM_STRIDE / 2,
                 &mut rng,
-                |_, luma, boxes| {
+                masks,
+                |_, luma, mask, boxes| {
                     for s in boxes {
-                        push_sample(&mut d, ex, luma, s, false, Origin::Sim, (k % 5) as u8);
+                        let fold = (k % 5) as u8;
+                        push_sample(&mut d, ex, luma, mask, s, false, Origin::Sim, fold);
                     }
                 },
             )?;
@@ -304,13 +317,14 @@ fn mine(
             scores.push(sc);
         }
     };
-    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, |f, luma| {
+    let masks = ex.layout().mask_fill;
+    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, masks, |f, luma, mask| {
         boxes.clear();
         let g = dataset::boxes_of_frame(&gt, f);
         samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
         let fold = (f * 5 / (PETS_TRAIN_LAST + 1)) as u8;
         for s in &boxes {
-            if let Some(x) = ex.extract(luma, &s.bbox) {
+            if let Some(x) = ex.extract_with_mask(luma, mask, &s.bbox, false) {
                 consider(x, s.kind, Origin::Pets, fold);
             }
         }
@@ -324,9 +338,10 @@ fn mine(
                     o.mine_sim_stride,
                     per,
                     &mut rng,
-                    |_, luma, boxes| {
+                    masks,
+                    |_, luma, mask, boxes| {
                         for s in boxes.iter().filter(|s| !s.kind.positive()) {
-                            if let Some(x) = ex.extract(luma, &s.bbox) {
+                            if let Some(x) = ex.extract_with_mask(luma, mask, &s.bbox, false) {
                                 consider(x, s.kind, Origin::Sim, (k % 5) as u8);
                             }
                         }

@@ -12,7 +12,8 @@
 //! `(win_h + 2)`, so that gradients and LBP codes exist at every window
 //! pixel. Samples outside the plane repeat its edge pixels.
 
-use super::layout::{Fit, Layout, ASPECT_CENTRES_Q8};
+use super::layout::{Fit, Layout, ASPECT_CENTRES_Q8, MASK_CELL, MAX_WINDOW_SIDE};
+use crate::detect::morphology::BitMask;
 use crate::detect::BBox;
 use crate::frame::Plane;
 
@@ -81,6 +82,64 @@ pub fn aspect_features(bbox: &BBox, out: &mut [u8]) {
     let hi = (255 * (r - c[k]) + (c[k + 1] - c[k]) / 2) / (c[k + 1] - c[k]);
     out[k + 1] = hi as u8;
     out[k] = (255 - hi) as u8;
+}
+
+/// Writes the foreground-fill features of `rect` (see the layout's part
+/// 5) to `out` (`layout.mask_dim()` values): each window pixel takes the
+/// mask pixel nearest its centre (outside the mask: background), mirrored
+/// left to right when `flip` is set; a cell's value is
+/// `round(255 · count / MASK_CELL²)`. With no mask every value is 0,
+/// the last one included.
+pub fn mask_features(
+    mask: Option<&BitMask>,
+    rect: &WindowRect,
+    layout: &Layout,
+    flip: bool,
+    out: &mut [u8],
+) {
+    out.fill(0);
+    let (cx, cy) = layout.mask_grid();
+    let (Some(mask), true) = (mask, out.len() > cx * cy) else {
+        return;
+    };
+    let (ww, wh) = (i64::from(layout.win_w), i64::from(layout.win_h));
+    // Nearest source pixel of window coordinate `i` (centre at
+    // `start + (i + ½)·extent / n`, Q16.16; |values| < 2^40, no overflow).
+    let source = |start: i64, extent: i64, n: i64, i: i64| {
+        let c = start + (2 * i + 1) * extent / (2 * n);
+        (c + (1 << 15)) >> 16
+    };
+    let (mw, mh) = (mask.width() as i64, mask.height() as i64);
+    // Source column of each window column, or none off the mask (the
+    // window is at most MAX_WINDOW_SIDE wide).
+    let mut columns = [None::<usize>; MAX_WINDOW_SIDE as usize];
+    for (i, c) in columns.iter_mut().enumerate().take(ww as usize) {
+        let x = source(rect.left, rect.width, ww, i as i64);
+        *c = (0..mw).contains(&x).then_some(x as usize);
+    }
+    for j in 0..wh {
+        let y = source(rect.top, rect.height, wh, j);
+        if !(0..mh).contains(&y) {
+            continue;
+        }
+        let row = mask.row(y as usize);
+        let cell_row = j as usize / MASK_CELL * cx;
+        for (i, c) in columns.iter().enumerate().take(ww as usize) {
+            let Some(x) = *c else { continue };
+            if row[x / 64] >> (x % 64) & 1 == 0 {
+                continue;
+            }
+            let col = if flip { ww as usize - 1 - i } else { i };
+            // At most MASK_CELL² = 16 per cell: fits a u8.
+            out[cell_row + col / MASK_CELL] += 1;
+        }
+    }
+    let full = (MASK_CELL * MASK_CELL) as u32;
+    for v in &mut out[..cx * cy] {
+        // count ≤ 16, so 255 · count < 2^12.
+        *v = ((u32::from(*v) * 255 + full / 2) / full) as u8;
+    }
+    out[cx * cy] = 255;
 }
 
 /// One axis of the sampling grid: for each window coordinate (border
@@ -273,6 +332,77 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn foreground_fill_counts_the_mask_under_each_cell() {
+        let mut l = Layout::default_layout();
+        l.mask_fill = true;
+        l.validate().unwrap();
+        assert_eq!(l.mask_dim(), 8 * 16 + 1);
+        // A box 140x224: the window is 140x280 px (margin 28 px above and
+        // below), 4.375 source px per window px. The mask fills the box's
+        // left half, so window rows 6..=57 and columns 0..=15 see it.
+        let b = BBox {
+            x0: 130,
+            y0: 100,
+            x1: 269,
+            y1: 323,
+        };
+        let mut mask = BitMask::new(400, 400);
+        for y in 100..=323 {
+            for x in 130..=199 {
+                mask.set(x, y, true);
+            }
+        }
+        let rect = window_rect(&b, &l);
+        let mut out = vec![7u8; l.mask_dim()];
+        mask_features(Some(&mask), &rect, &l, false, &mut out);
+        // Cell rows 1 and 14 hold two filled window rows of four: 255·8/16.
+        for row in 0..16 {
+            let want = match row {
+                0 | 15 => 0,
+                1 | 14 => 128,
+                _ => 255,
+            };
+            let cells = &out[row * 8..row * 8 + 8];
+            assert_eq!(
+                cells,
+                [want, want, want, want, 0, 0, 0, 0],
+                "cell row {row}"
+            );
+        }
+        assert_eq!(out[128], 255, "mask given");
+        let mut flipped = vec![0u8; l.mask_dim()];
+        mask_features(Some(&mask), &rect, &l, true, &mut flipped);
+        for row in 0..16 {
+            let r = &out[row * 8..row * 8 + 8];
+            assert!(r.iter().rev().eq(flipped[row * 8..row * 8 + 8].iter()));
+        }
+        mask_features(None, &rect, &l, false, &mut out);
+        assert!(out.iter().all(|&v| v == 0), "no mask: all zero");
+        // A box running off the mask: what is outside counts as background.
+        let edge = BBox {
+            x0: 380,
+            y0: 350,
+            x1: 399,
+            y1: 399,
+        };
+        let mut full = BitMask::new(400, 400);
+        for y in 0..400 {
+            for x in 0..400 {
+                full.set(x, y, true);
+            }
+        }
+        mask_features(Some(&full), &window_rect(&edge, &l), &l, false, &mut out);
+        assert_eq!(out[0], 255);
+        // Window rows 56, 57 and columns 24, 25 are the last on the image
+        // (source rows and columns 398, 399): 2x2 of cell (row 14, column
+        // 6)'s 4x4 pixels; the cells below and right of it are off it.
+        assert_eq!(out[14 * 8 + 6], 64, "cell on the image's corner");
+        assert_eq!(out[14 * 8 + 7], 0);
+        assert_eq!(out[15 * 8 + 6], 0);
+        assert_eq!(out[13 * 8 + 5], 255);
+    }
 
     fn contain() -> Layout {
         Layout::full(32, 64, 43, 4, 8, 2).unwrap()

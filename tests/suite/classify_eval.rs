@@ -61,3 +61,53 @@ fn held_out_sim_regions() {
         dogs.n
     );
 }
+
+/// The foreground-fill variant (`weights/classifier-mask.bin`, `stature
+/// train --mask-fill true`; not the built-in weights, see RESULTS): its
+/// features read the detector's mask, which the evaluation builds by
+/// running the detector over every frame. Measured: PETS 95.62 %, sim
+/// 96.49 %, 7 of 32 dog regions accepted.
+#[test]
+fn held_out_regions_with_foreground_fill() {
+    let Some(dir) = stature::dataset::require_shared_data("classifier held-out evaluation") else {
+        return;
+    };
+    let blob = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/weights/classifier-mask.bin"
+    ))
+    .unwrap();
+    let model = Model::from_bytes(&blob).unwrap();
+    assert!(model.layout.mask_fill);
+    let pets = evaluate_pets(&dir, &model, 1).unwrap();
+    let sim = evaluate_sim(&model, 1).unwrap();
+    eprintln!("{}\n{}", pets.table(), sim.table());
+    let (p, s) = (pets.metrics(|_| true), sim.metrics(|_| true));
+    assert!(p.accuracy() >= 0.95, "PETS accuracy {:.4}", p.accuracy());
+    assert!(s.accuracy() >= 0.96, "sim accuracy {:.4}", s.accuracy());
+    assert!(
+        sim.auc(|_| true) >= 0.99,
+        "sim AUC {:.4}",
+        sim.auc(|_| true)
+    );
+    assert_eq!(sim.metrics(|r| r.kind == Kind::Car).fp, 0, "cars accepted");
+    // Without its masks the same weights lose their silhouette cue: the
+    // features are read, not ignored.
+    let mut cls = stature::classify::eval::scorer(&model);
+    let row = pets.rows.iter().find(|r| r.kind == Kind::Person).unwrap();
+    let luma_w = 768;
+    let grey = vec![128u8; luma_w * 576];
+    let plane = stature::frame::Plane::new(&grey, luma_w, 576).unwrap();
+    let bare = cls.classify_box(plane, &row.bbox).score;
+    let mut mask = stature::detect::morphology::BitMask::new(luma_w, 576);
+    for y in row.bbox.y0..=row.bbox.y1 {
+        for x in row.bbox.x0..=row.bbox.x1 {
+            mask.set(usize::from(x), usize::from(y), true);
+        }
+    }
+    let filled = cls.classify_box_masked(plane, Some(&mask), &row.bbox).score;
+    assert!(
+        (bare - filled).abs() > 0.05,
+        "mask ignored: {bare} vs {filled}"
+    );
+}
