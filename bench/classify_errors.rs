@@ -50,7 +50,10 @@ fn main() {
     let mut cls = eval::scorer(&model);
     let mut ex = Extractor::new(&model.layout);
     let mut rows: Vec<Row> = Vec::new();
-    let masks = model.layout.mask_fill;
+    let detection = samples::Detection {
+        mask: model.layout.mask_fill,
+        label: false,
+    };
     let mut score = |origin,
                      scene,
                      frame,
@@ -76,11 +79,11 @@ fn main() {
         }
     };
     let data = stature::dataset::shared_data_dir().expect("../shared/data");
-    eval::for_held_out_pets(&data, 1, masks, |f, luma, mask, boxes| {
+    eval::for_held_out_pets(&data, 1, detection, |f, luma, mask, boxes| {
         score(Origin::Pets, "pets", f, luma, mask, boxes)
     })
     .unwrap();
-    eval::for_held_out_sim(1, masks, |scene, f, luma, mask, boxes| {
+    eval::for_held_out_sim(1, detection, |scene, f, luma, mask, boxes| {
         score(Origin::Sim, scene, f as u32, luma, mask, boxes)
     })
     .unwrap();

@@ -224,6 +224,9 @@ struct TrainArgs {
     /// Foreground-fill features from the detector's mask (default false).
     #[arg(long)]
     mask_fill: Option<bool>,
+    /// Also train on the detector's own regions, labelled by the ground truth (default false).
+    #[arg(long)]
+    detected_regions: Option<bool>,
     /// Feature set: hog+lbp, hog or lbp.
     #[arg(long, default_value = "hog+lbp")]
     features: String,
@@ -1474,11 +1477,16 @@ fn train_cmd(a: TrainArgs) -> i32 {
         }
         let ev = eval::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
             ev.rows.extend(eval::evaluate_sim(&model, a.seed)?.rows);
-            Ok(ev)
+            Ok((ev, eval::evaluate_detected(&data_dir, &model, a.seed)?))
         });
         return match ev {
-            Ok(ev) => print_out(&format!("{}\n{}", ev.table(), ev.det_table()))
-                .map_or_else(|code| code, |()| exit::OK),
+            Ok((ev, det)) => print_out(&format!(
+                "{}\n{}\ndetected regions (the detector's own, labelled by the truth):\n{}",
+                ev.table(),
+                ev.det_table(),
+                det.table()
+            ))
+            .map_or_else(|code| code, |()| exit::OK),
             // The data, or the ffmpeg that decodes its video, is missing.
             Err(e) => {
                 say!("error: {e}");
@@ -1666,6 +1674,9 @@ fn train_options(
     }
     if let Some(s) = &a.animal_seeds {
         o.animal_seeds = train::parse_seeds(s).map_err(|e| format!("--animal-seeds {e}"))?;
+    }
+    if let Some(d) = a.detected_regions {
+        o.detected_regions = d;
     }
     if let Some(m) = a.mirror {
         o.mirror = m;

@@ -3,7 +3,7 @@
 //! trainer never uses, scored through the production [`Classifier`] path;
 //! accuracy, precision and recall per source and kind, and a DET table.
 
-use super::samples::{self, Kind, Labelled, Origin, PerFrame, Rng};
+use super::samples::{self, Detection, Kind, Labelled, Origin, PerFrame, Rng};
 use super::svm::Model;
 use super::train::{for_pets_frames, PETS_TRAIN_LAST, SIM_EVAL_SEEDS, SIM_SCENES, SIM_STRIDE};
 use super::{Classifier, ClassifyConfig};
@@ -214,7 +214,7 @@ pub const EVAL_PER_FRAME: PerFrame = PerFrame {
 pub fn for_held_out_pets(
     data_dir: &Path,
     seed: u64,
-    masks: bool,
+    detection: Detection,
     mut each: impl FnMut(u32, Plane<'_>, Option<&BitMask>, &[Labelled]),
 ) -> Result<(), String> {
     let gt = dataset::load_pets_gt(data_dir)?;
@@ -224,13 +224,18 @@ pub fn for_held_out_pets(
         data_dir,
         PETS_TRAIN_LAST + 1,
         794,
-        masks,
-        |f, luma, mask| {
+        detection,
+        |f, luma, det| {
             boxes.clear();
             let g = dataset::boxes_of_frame(&gt, f);
             let per = EVAL_PER_FRAME;
-            samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
-            each(f, luma, mask, &boxes);
+            let (w, h) = (luma.width, luma.height);
+            samples::pets_frame_samples(g, w, h, per, &mut rng, &mut boxes);
+            let people: Vec<_> = g.iter().map(samples::gt_fbox).collect();
+            let hidden = vec![false; people.len()];
+            let regions = det.labelled_regions();
+            samples::detected_labels(regions, &people, &hidden, &[], w, h, &mut boxes);
+            each(f, luma, det.mask(), &boxes);
         },
     )
 }
@@ -240,7 +245,7 @@ pub fn for_held_out_pets(
 /// with its labelled boxes, drawn as for [`for_held_out_pets`].
 pub fn for_held_out_sim(
     seed: u64,
-    masks: bool,
+    detection: Detection,
     mut each: impl FnMut(&'static str, u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
 ) -> Result<(), String> {
     let mut rng = Rng::new(seed.wrapping_add(2000));
@@ -253,7 +258,7 @@ pub fn for_held_out_sim(
                 SIM_STRIDE,
                 per,
                 &mut rng,
-                masks,
+                detection,
                 |f, luma, mask, boxes| each(scene, f, luma, mask, boxes),
             )?;
         }
@@ -272,6 +277,7 @@ pub fn scorer(model: &Model) -> Classifier {
     Classifier::with_model(model.clone(), &cfg)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn score_into(
     ev: &mut Evaluation,
     cls: &mut Classifier,
@@ -280,8 +286,9 @@ fn score_into(
     luma: Plane<'_>,
     mask: Option<&BitMask>,
     boxes: &[Labelled],
+    detected: bool,
 ) {
-    for b in boxes {
+    for b in boxes.iter().filter(|b| b.detected == detected) {
         let v = cls.classify_box_masked(luma, mask, &b.bbox);
         ev.rows.push(Scored {
             origin,
@@ -295,22 +302,71 @@ fn score_into(
 
 /// Scores `model` on the held-out PETS frames 600–794 ([`scorer`]).
 pub fn evaluate_pets(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
-    let mut cls = scorer(model);
-    let mut ev = Evaluation::default();
-    let masks = model.layout.mask_fill;
-    for_held_out_pets(data_dir, seed, masks, |f, luma, mask, boxes| {
-        score_into(&mut ev, &mut cls, Origin::Pets, f, luma, mask, boxes)
-    })?;
-    Ok(ev)
+    evaluate_pets_regions(data_dir, model, seed, false)
 }
 
 /// Scores `model` on the held-out simulated clips ([`scorer`]).
 pub fn evaluate_sim(model: &Model, seed: u64) -> Result<Evaluation, String> {
+    evaluate_sim_regions(model, seed, false)
+}
+
+/// Scores `model` on the detector's own regions of the held-out PETS
+/// frames and simulated clips, labelled by the truth
+/// ([`samples::detected_labels`]; ambiguous regions left out): what the
+/// loop classifies, rather than jittered true boxes.
+pub fn evaluate_detected(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
+    let mut ev = evaluate_pets_regions(data_dir, model, seed, true)?;
+    ev.rows
+        .extend(evaluate_sim_regions(model, seed, true)?.rows);
+    Ok(ev)
+}
+
+fn evaluate_pets_regions(
+    data_dir: &Path,
+    model: &Model,
+    seed: u64,
+    detected: bool,
+) -> Result<Evaluation, String> {
     let mut cls = scorer(model);
     let mut ev = Evaluation::default();
-    let masks = model.layout.mask_fill;
-    for_held_out_sim(seed, masks, |_, f, luma, mask, boxes| {
-        score_into(&mut ev, &mut cls, Origin::Sim, f as u32, luma, mask, boxes)
+    let detection = Detection {
+        mask: model.layout.mask_fill,
+        label: detected,
+    };
+    for_held_out_pets(data_dir, seed, detection, |f, luma, mask, boxes| {
+        score_into(
+            &mut ev,
+            &mut cls,
+            Origin::Pets,
+            f,
+            luma,
+            mask,
+            boxes,
+            detected,
+        )
+    })?;
+    Ok(ev)
+}
+
+fn evaluate_sim_regions(model: &Model, seed: u64, detected: bool) -> Result<Evaluation, String> {
+    let mut cls = scorer(model);
+    let mut ev = Evaluation::default();
+    let detection = Detection {
+        mask: model.layout.mask_fill,
+        label: detected,
+    };
+    for_held_out_sim(seed, detection, |_, f, luma, mask, boxes| {
+        let f = f as u32;
+        score_into(
+            &mut ev,
+            &mut cls,
+            Origin::Sim,
+            f,
+            luma,
+            mask,
+            boxes,
+            detected,
+        )
     })?;
     Ok(ev)
 }

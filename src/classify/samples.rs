@@ -15,7 +15,7 @@
 
 use crate::dataset::GtBox;
 use crate::detect::morphology::BitMask;
-use crate::detect::{BBox, DetectConfig, Detector, RegionSet};
+use crate::detect::{BBox, DetectConfig, Detector, Region, RegionSet};
 use crate::frame::{Frame, Plane, Size};
 use std::path::Path;
 
@@ -163,7 +163,8 @@ pub fn to_bbox(b: &FBox, w: usize, h: usize) -> Option<BBox> {
     })
 }
 
-fn gt_fbox(g: &GtBox) -> FBox {
+/// A ground-truth box as a float box.
+pub fn gt_fbox(g: &GtBox) -> FBox {
     [
         f64::from(g.x0),
         f64::from(g.y0),
@@ -179,6 +180,9 @@ pub struct Labelled {
     pub kind: Kind,
     /// The box.
     pub bbox: BBox,
+    /// One of the detector's own regions ([`detected_labels`]), not a box
+    /// drawn from the truth.
+    pub detected: bool,
 }
 
 /// How many negatives of each kind to draw per frame.
@@ -271,7 +275,11 @@ pub fn frame_samples(
         .collect();
     let mut push = |kind: Kind, b: &FBox| {
         if let Some(bbox) = to_bbox(b, w, h) {
-            out.push(Labelled { kind, bbox });
+            out.push(Labelled {
+                kind,
+                bbox,
+                detected: false,
+            });
         }
     };
     for &i in &clean {
@@ -428,6 +436,47 @@ pub fn plane(data: &[u8], w: usize, h: usize) -> Option<Plane<'_>> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn detected_regions_are_labelled_by_what_they_hold() {
+        let region = |x0, y0, x1, y1| Region {
+            bbox: BBox { x0, y0, x1, y1 },
+            ..Default::default()
+        };
+        // Two people side by side, one apart, one hidden by a prop, a dog.
+        let people = [
+            [100.0, 100.0, 129.0, 189.0],
+            [132.0, 102.0, 160.0, 190.0],
+            [300.0, 100.0, 329.0, 189.0],
+            [500.0, 100.0, 529.0, 189.0],
+        ];
+        let hidden = [false, false, false, true];
+        let others = [(Kind::Dog, [400.0, 170.0, 440.0, 189.0])];
+        let regions = [
+            region(100, 100, 160, 190), // both neighbours: a group
+            region(301, 98, 331, 190),  // the lone person, a loose box
+            region(300, 100, 329, 130), // the lone person's head and chest
+            region(402, 168, 439, 189), // the dog
+            region(600, 300, 630, 350), // nothing there: a ghost
+            region(500, 100, 529, 189), // the hidden person: ambiguous
+            region(295, 95, 340, 240),  // the lone person and a long shadow: IoU < 0.5
+            region(100, 100, 134, 189), // one neighbour and a sliver of the other
+        ];
+        let mut out = Vec::new();
+        detected_labels(&regions, &people, &hidden, &others, 768, 576, &mut out);
+        let kinds: Vec<(Kind, u16)> = out.iter().map(|l| (l.kind, l.bbox.x0)).collect();
+        assert_eq!(
+            kinds,
+            [
+                (Kind::Group, 100),
+                (Kind::Person, 301),
+                (Kind::Fragment, 300),
+                (Kind::Dog, 402),
+                (Kind::Background, 600),
+                (Kind::Person, 100),
+            ]
+        );
+    }
+
     fn gt(id: u32, x0: i32, y0: i32, x1: i32, y1: i32) -> GtBox {
         GtBox {
             frame: 0,
@@ -483,29 +532,132 @@ mod tests {
     }
 }
 
-/// The detector's cleaned foreground mask of every frame of a clip, for
-/// layouts with foreground-fill features (default detection settings, as
-/// the loop runs them); does nothing when off.
+/// What the sample iterators do with the detector.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Detection {
+    /// Run it and hand out its foreground mask (for foreground-fill
+    /// features).
+    pub mask: bool,
+    /// Run it and also label its regions against the truth
+    /// ([`detected_labels`]): training samples cut as the loop cuts them.
+    pub label: bool,
+}
+
+impl Detection {
+    /// Whether the detector runs at all.
+    pub fn on(self) -> bool {
+        self.mask || self.label
+    }
+}
+
+/// The detector over every frame of a clip (default detection settings, as
+/// the loop runs them): its cleaned foreground mask and its regions; does
+/// nothing when off.
 pub struct Masker {
     detector: Option<(Detector, RegionSet)>,
+    label: bool,
 }
 
 impl Masker {
-    /// A detector for frames of `size` when `on`.
-    pub fn new(on: bool, size: Size) -> Self {
-        let detector = on.then(|| {
+    /// A detector for frames of `size` when `use_.on()`.
+    pub fn new(use_: Detection, size: Size) -> Self {
+        let detector = use_.on().then(|| {
             let cfg = DetectConfig::default();
             let regions = RegionSet::with_capacity(cfg.region_capacity(), cfg.run_capacity(size));
             (Detector::new(&cfg, size), regions)
         });
-        Masker { detector }
+        Masker {
+            detector,
+            label: use_.label,
+        }
     }
-    /// Feeds the next frame of the clip (every frame, in order) and returns
-    /// its mask, or `None` when off.
-    pub fn update(&mut self, frame: &Frame) -> Option<&BitMask> {
-        let (d, regions) = self.detector.as_mut()?;
-        d.process(frame, regions);
-        Some(d.mask())
+    /// Feeds the next frame of the clip (every frame, in order).
+    pub fn update(&mut self, frame: &Frame) {
+        if let Some((d, regions)) = self.detector.as_mut() {
+            d.process(frame, regions);
+        }
+    }
+    /// The last frame's foreground mask, or `None` when off.
+    pub fn mask(&self) -> Option<&BitMask> {
+        self.detector.as_ref().map(|(d, _)| d.mask())
+    }
+    /// The last frame's regions when labelling is on, else none.
+    pub fn labelled_regions(&self) -> &[Region] {
+        match &self.detector {
+            Some((_, r)) if self.label => r.regions(),
+            _ => &[],
+        }
+    }
+}
+
+/// Labels the detector's regions of one frame against its true boxes:
+/// `people` (with `hidden[i]` for a person partly hidden by a prop) and
+/// `others` (cars, dogs). A region holding at least half of two people is
+/// a group; one whose box matches one clean, unoccluded person (IoU ≥ 0.5,
+/// under 0.2 of any other person inside) is a person; one lying at least
+/// 0.7 inside a person's box but holding under half of anyone is a
+/// fragment; one matching a car or dog (half of each inside the other) is
+/// that; one touching nothing (under 0.1 of it on any true box) is
+/// background. Everything else is ambiguous and left out. `w`×`h` image.
+pub fn detected_labels(
+    regions: &[Region],
+    people: &[FBox],
+    hidden: &[bool],
+    others: &[(Kind, FBox)],
+    w: usize,
+    h: usize,
+    out: &mut Vec<Labelled>,
+) {
+    let inside =
+        |b: &FBox| b[0] >= 2.0 && b[1] >= 2.0 && b[2] <= w as f64 - 3.0 && b[3] <= h as f64 - 3.0;
+    for r in regions {
+        let b = r.bbox;
+        let rb = [
+            f64::from(b.x0),
+            f64::from(b.y0),
+            f64::from(b.x1),
+            f64::from(b.y1),
+        ];
+        let held: Vec<f64> = people.iter().map(|p| coverage(p, &rb)).collect();
+        let whole: Vec<usize> = (0..people.len()).filter(|&i| held[i] >= 0.5).collect();
+        let kind = match whole.len() {
+            0 => {
+                let in_person = people.iter().map(|p| coverage(&rb, p)).fold(0.0, f64::max);
+                let animal = others
+                    .iter()
+                    .find(|(_, o)| coverage(o, &rb) >= 0.5 && coverage(&rb, o) >= 0.5);
+                let touched = people
+                    .iter()
+                    .chain(others.iter().map(|(_, o)| o))
+                    .map(|o| coverage(&rb, o))
+                    .fold(0.0, f64::max);
+                if in_person >= 0.7 {
+                    Some(Kind::Fragment)
+                } else if let Some((k, _)) = animal {
+                    Some(*k)
+                } else if touched < 0.1 {
+                    Some(Kind::Background)
+                } else {
+                    None
+                }
+            }
+            1 => {
+                let i = whole[0];
+                let p = &people[i];
+                let i_r = inter(p, &rb);
+                let iou = i_r / (area(p) + area(&rb) - i_r).max(1.0);
+                let others_in: f64 = (0..people.len()).filter(|&j| j != i).map(|j| held[j]).sum();
+                (iou >= 0.5 && others_in < 0.2 && !hidden[i] && inside(p)).then_some(Kind::Person)
+            }
+            _ => Some(Kind::Group),
+        };
+        if let Some(kind) = kind {
+            out.push(Labelled {
+                kind,
+                bbox: b,
+                detected: true,
+            });
+        }
     }
 }
 
@@ -533,7 +685,11 @@ pub mod sim {
             return None;
         }
         let bbox = to_bbox(&jitter(&truth_box(o), rng), w, h)?;
-        Some(Labelled { kind, bbox })
+        Some(Labelled {
+            kind,
+            bbox,
+            detected: false,
+        })
     }
 
     /// Calls `each(frame_index, luma, samples)` for every `stride`-th frame
@@ -546,10 +702,11 @@ pub mod sim {
         seed: u64,
         stride: u64,
         rng: &mut Rng,
-        masks: bool,
+        detection: Detection,
         mut each: impl FnMut(u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
     ) -> Result<(), String> {
         let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
+        let masks = detection.on();
         let spans: Vec<(u64, u64)> = src
             .cast()
             .iter()
@@ -558,7 +715,7 @@ pub mod sim {
             .collect();
         let size = crate::source::FrameSource::info(&src).size;
         let mut frame = Frame::new(size);
-        let mut masker = Masker::new(masks, size);
+        let mut masker = Masker::new(detection, size);
         let mut out = Vec::new();
         let (mut k, mut next) = (0, 0);
         while k < src.frames() {
@@ -568,13 +725,13 @@ pub mod sim {
                 continue;
             }
             src.render(k, &mut frame);
-            let mask = masker.update(&frame);
+            masker.update(&frame);
             if wanted {
                 out.clear();
                 for o in src.truth() {
                     out.extend(animal_sample(o, rng, size.width, size.height));
                 }
-                each(k, frame.luma(), mask, &out);
+                each(k, frame.luma(), masker.mask(), &out);
                 next = k + stride;
             }
             k += 1;
@@ -590,18 +747,19 @@ pub mod sim {
         stride: u64,
         per: PerFrame,
         rng: &mut Rng,
-        masks: bool,
+        detection: Detection,
         mut each: impl FnMut(u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
     ) -> Result<(), String> {
         let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
         let size = crate::source::FrameSource::info(&src).size;
         let mut frame = Frame::new(size);
-        let mut masker = Masker::new(masks, size);
+        let masks = detection.on();
+        let mut masker = Masker::new(detection, size);
         let mut out = Vec::new();
         let mut k = 0;
         while k < src.frames() {
             src.render(k, &mut frame);
-            let mask = masker.update(&frame);
+            masker.update(&frame);
             if k % stride != 0 {
                 k += 1;
                 continue;
@@ -609,6 +767,7 @@ pub mod sim {
             let mut people = Vec::new();
             let mut hidden = Vec::new();
             let mut others = Vec::new();
+            let mut animals = Vec::new();
             out.clear();
             for o in src.truth() {
                 if o.kind == SimKind::Person {
@@ -616,6 +775,12 @@ pub mod sim {
                     hidden.push(o.visible_fraction < 0.85);
                 } else {
                     others.push(truth_box(o));
+                    let kind = if o.kind == SimKind::Car {
+                        Kind::Car
+                    } else {
+                        Kind::Dog
+                    };
+                    animals.push((kind, truth_box(o)));
                     out.extend(animal_sample(o, rng, size.width, size.height));
                 }
             }
@@ -629,7 +794,10 @@ pub mod sim {
                 rng,
                 &mut out,
             );
-            each(k, frame.luma(), mask, &out);
+            let (w, h) = (size.width, size.height);
+            let regions = masker.labelled_regions();
+            detected_labels(regions, &people, &hidden, &animals, w, h, &mut out);
+            each(k, frame.luma(), masker.mask(), &out);
             k += if masks { 1 } else { stride };
         }
         Ok(())
@@ -647,7 +815,7 @@ pub mod sim {
                 1,
                 5,
                 &mut Rng::new(1),
-                false,
+                Detection::default(),
                 |_, luma, _, boxes| {
                     frames += 1;
                     assert_eq!((luma.width, luma.height), (640, 480));

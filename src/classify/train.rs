@@ -24,9 +24,9 @@
 //! 7. Quantise to i8, write the blob, report (with the held-out evaluation
 //!    of [`super::eval`] when asked).
 
-use super::eval::{evaluate_pets, evaluate_sim, Evaluation};
+use super::eval::{evaluate_detected, evaluate_pets, evaluate_sim, Evaluation};
 use super::layout::{Layout, BLOCK_DIM, LBP_BINS};
-use super::samples::{self, Kind, Labelled, Origin, PerFrame, Rng};
+use super::samples::{self, Detection, Kind, Labelled, Origin, PerFrame, Rng};
 use super::solver::{accuracy, cross_validate, solve, Data, KindWeights, Linear};
 use super::svm::Model;
 use super::Extractor;
@@ -77,6 +77,10 @@ pub struct TrainOptions {
     pub kind_weights: KindWeights,
     /// Skip the cross-validation of the final set (faster experiments).
     pub skip_final_cv: bool,
+    /// Also train on the detector's own regions of the sampled PETS and
+    /// simulated frames, labelled against the truth
+    /// ([`samples::detected_labels`]).
+    pub detected_regions: bool,
 }
 
 impl TrainOptions {
@@ -98,6 +102,7 @@ impl TrainOptions {
             mine_sim_stride: 0,
             kind_weights: KindWeights::default(),
             skip_final_cv: false,
+            detected_regions: false,
         }
     }
 }
@@ -123,19 +128,19 @@ pub fn parse_seeds(spec: &str) -> Result<Vec<u64>, String> {
 /// `C` values tried by cross-validation.
 pub const C_GRID: [f64; 4] = [0.01, 0.03, 0.1, 0.3];
 
-/// Calls `each(frame_index, luma, mask)` for PETS frames `first..=last`;
-/// with `masks`, the detector runs on every frame from 0 and `mask` is its
-/// foreground mask (see [`samples::Masker`]).
+/// Calls `each(frame_index, luma, detector)` for PETS frames
+/// `first..=last`; with `detection` on, the detector has run on every frame
+/// from 0 (see [`samples::Masker`]).
 pub fn for_pets_frames(
     data_dir: &Path,
     first: u32,
     last: u32,
-    masks: bool,
-    mut each: impl FnMut(u32, Plane<'_>, Option<&BitMask>),
+    detection: Detection,
+    mut each: impl FnMut(u32, Plane<'_>, &samples::Masker),
 ) -> Result<(), String> {
     let mut src = dataset::pets_video(data_dir).map_err(|e| e.to_string())?;
     let mut frame = Frame::new(src.info().size);
-    let mut masker = samples::Masker::new(masks, src.info().size);
+    let mut masker = samples::Masker::new(detection, src.info().size);
     let mut k = 0u32;
     while k <= last {
         match src.next_frame(&mut frame).map_err(|e| e.to_string())? {
@@ -143,9 +148,9 @@ pub fn for_pets_frames(
             Next::Waiting => continue,
             Next::End => break,
         }
-        let mask = masker.update(&frame);
+        masker.update(&frame);
         if k >= first {
-            each(k, frame.luma(), mask);
+            each(k, frame.luma(), &masker);
         }
         k += 1;
     }
@@ -218,14 +223,23 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
     };
     let mut boxes = Vec::new();
     log::info!("training set: PETS frames 0..={PETS_TRAIN_LAST}");
-    let masks = ex.layout().mask_fill;
-    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, masks, |f, luma, mask| {
+    let masks = Detection {
+        mask: ex.layout().mask_fill,
+        label: o.detected_regions,
+    };
+    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, masks, |f, luma, det| {
         if f % o.pets_stride != 0 {
             return;
         }
         boxes.clear();
         let g = dataset::boxes_of_frame(&gt, f);
-        samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
+        let (w, h) = (luma.width, luma.height);
+        samples::pets_frame_samples(g, w, h, per, &mut rng, &mut boxes);
+        let people: Vec<_> = g.iter().map(samples::gt_fbox).collect();
+        let hidden = vec![false; people.len()];
+        let regions = det.labelled_regions();
+        samples::detected_labels(regions, &people, &hidden, &[], w, h, &mut boxes);
+        let mask = det.mask();
         let fold = (f * 5 / (PETS_TRAIN_LAST + 1)) as u8;
         for s in &boxes {
             push_sample(&mut d, ex, luma, mask, s, o.mirror, Origin::Pets, fold);
@@ -317,8 +331,12 @@ fn mine(
             scores.push(sc);
         }
     };
-    let masks = ex.layout().mask_fill;
-    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, masks, |f, luma, mask| {
+    let masks = Detection {
+        mask: ex.layout().mask_fill,
+        label: false,
+    };
+    for_pets_frames(&o.data_dir, 0, PETS_TRAIN_LAST, masks, |f, luma, det| {
+        let mask = det.mask();
         boxes.clear();
         let g = dataset::boxes_of_frame(&gt, f);
         samples::pets_frame_samples(g, luma.width, luma.height, per, &mut rng, &mut boxes);
@@ -459,6 +477,12 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         o.animal_seeds, SIM_STRIDE / 2, SIM_EVAL_SEEDS,
         o.mirror, o.persons_per_frame, o.kind_weights.0, Kind::ALL.map(|k| k.name()), o.mining_rounds, o.select
     );
+    if o.detected_regions {
+        let _ = writeln!(
+            log,
+            "detected regions: the detector's own regions of every sampled PETS and sim frame, labelled by the truth\n"
+        );
+    }
     let mut ex = Extractor::new(l);
     let mut d = base_set(o, &mut ex, &mut log)?;
     let kw = &o.kind_weights;
@@ -558,6 +582,12 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         log.push_str(&ev.table());
         log.push('\n');
         log.push_str(&ev.det_table());
+        let det = evaluate_detected(&o.data_dir, &model, o.seed)?;
+        let _ = writeln!(
+            log,
+            "\n## Held-out detected regions (the detector's own regions of the same frames, labelled by the truth)\n"
+        );
+        log.push_str(&det.table());
         if std::env::var_os("STATURE_TRAIN_DEBUG").is_some() {
             // Ranking quality for comparing variants (never a reported
             // result: the best threshold is chosen on the held-out rows).
