@@ -231,10 +231,7 @@ pub fn for_held_out_pets(
             let per = EVAL_PER_FRAME;
             let (w, h) = (luma.width, luma.height);
             samples::pets_frame_samples(g, w, h, per, &mut rng, &mut boxes);
-            let people: Vec<_> = g.iter().map(samples::gt_fbox).collect();
-            let hidden = vec![false; people.len()];
-            let regions = det.labelled_regions();
-            samples::detected_labels(regions, &people, &hidden, &[], w, h, &mut boxes);
+            samples::pets_detected_labels(det.labelled_regions(), g, w, h, &mut boxes);
             each(f, luma, det.mask(), &boxes);
         },
     )

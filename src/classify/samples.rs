@@ -163,8 +163,7 @@ pub fn to_bbox(b: &FBox, w: usize, h: usize) -> Option<BBox> {
     })
 }
 
-/// A ground-truth box as a float box.
-pub fn gt_fbox(g: &GtBox) -> FBox {
+fn gt_fbox(g: &GtBox) -> FBox {
     [
         f64::from(g.x0),
         f64::from(g.y0),
@@ -229,6 +228,23 @@ pub fn fragment(b: &FBox, rng: &mut Rng) -> FBox {
             [b[0], t, b[2], t + h * rng.range(0.3, 0.45)]
         }
     }
+}
+
+/// [`detected_labels`] for one PETS frame's regions against its
+/// ground-truth boxes (no props, no animals), `w`×`h` image.
+pub fn pets_detected_labels(
+    regions: &[Region],
+    gt: &[GtBox],
+    w: usize,
+    h: usize,
+    out: &mut Vec<Labelled>,
+) {
+    if regions.is_empty() {
+        return;
+    }
+    let people: Vec<FBox> = gt.iter().map(gt_fbox).collect();
+    let hidden = vec![false; people.len()];
+    detected_labels(regions, &people, &hidden, &[], w, h, out);
 }
 
 /// Labelled boxes of one PETS frame (see the module doc), `w`×`h` image.

@@ -235,10 +235,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
         let g = dataset::boxes_of_frame(&gt, f);
         let (w, h) = (luma.width, luma.height);
         samples::pets_frame_samples(g, w, h, per, &mut rng, &mut boxes);
-        let people: Vec<_> = g.iter().map(samples::gt_fbox).collect();
-        let hidden = vec![false; people.len()];
-        let regions = det.labelled_regions();
-        samples::detected_labels(regions, &people, &hidden, &[], w, h, &mut boxes);
+        samples::pets_detected_labels(det.labelled_regions(), g, w, h, &mut boxes);
         let mask = det.mask();
         let fold = (f * 5 / (PETS_TRAIN_LAST + 1)) as u8;
         for s in &boxes {

@@ -348,12 +348,17 @@ mod tests {
             x1: 269,
             y1: 323,
         };
-        let mut mask = BitMask::new(400, 400);
-        for y in 100..=323 {
-            for x in 130..=199 {
-                mask.set(x, y, true);
+        let filled = |xs: core::ops::RangeInclusive<usize>,
+                      ys: core::ops::RangeInclusive<usize>| {
+            let mut m = BitMask::new(400, 400);
+            for y in ys {
+                for x in xs.clone() {
+                    m.set(x, y, true);
+                }
             }
-        }
+            m
+        };
+        let mask = filled(130..=199, 100..=323);
         let rect = window_rect(&b, &l);
         let mut out = vec![7u8; l.mask_dim()];
         mask_features(Some(&mask), &rect, &l, false, &mut out);
@@ -387,12 +392,7 @@ mod tests {
             x1: 399,
             y1: 399,
         };
-        let mut full = BitMask::new(400, 400);
-        for y in 0..400 {
-            for x in 0..400 {
-                full.set(x, y, true);
-            }
-        }
+        let full = filled(0..=399, 0..=399);
         mask_features(Some(&full), &window_rect(&edge, &l), &l, false, &mut out);
         assert_eq!(out[0], 255);
         // Window rows 56, 57 and columns 24, 25 are the last on the image
