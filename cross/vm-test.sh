@@ -155,15 +155,25 @@ for pair in aarch64-linux-gnu:ld-linux-aarch64.so.1 arm-linux-gnueabihf:ld-linux
         cp -L "/usr/$triplet/lib/$lib" "$root/lib/$triplet/"
     done
 done
-cp "$musl_bin" "$root/bin/stature-musl"
+# The binaries go in without their debug info: the guest's root file
+# system lives in its 512 MiB of RAM, and five binaries with debug info
+# (30-34 MB each) plus the installed copy left it full.
+payload() { # SRC DST STRIP-TOOL
+    if command -v "$3" >/dev/null; then
+        "$3" --strip-debug -o "$2" "$1"
+    else
+        cp "$1" "$2"
+    fi
+}
+payload "$musl_bin" "$root/bin/stature-musl" aarch64-linux-gnu-strip
 if [[ -n $sinks_test ]]; then
-    cp "$sinks_test" "$root/bin/sinks-test"
-    cp "$sinks_test_armv7" "$root/bin/sinks-test-armv7"
+    payload "$sinks_test" "$root/bin/sinks-test" aarch64-linux-gnu-strip
+    payload "$sinks_test_armv7" "$root/bin/sinks-test-armv7" arm-linux-gnueabihf-strip
 fi
-cp "$armv7_bin" "$root/bin/stature-armv7"
+payload "$armv7_bin" "$root/bin/stature-armv7" arm-linux-gnueabihf-strip
 # Deployment payload, as a user would scp it to the board (README: the
 # aarch64-unknown-linux-gnu build for a Pi 4).
-cp "$gnu_bin" "$root/deploy/bin/stature"
+payload "$gnu_bin" "$root/deploy/bin/stature" aarch64-linux-gnu-strip
 cp "$repo"/board/*.toml "$repo/board/stature.service" "$repo/board/install.sh" "$root/deploy/board/"
 # A minimal passwd/group like a board image has (busybox adduser fills them in).
 printf 'root:x:0:0:root:/root:/bin/sh\n' >"$root/etc/passwd"
