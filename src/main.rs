@@ -1475,12 +1475,8 @@ fn train_cmd(a: TrainArgs) -> i32 {
             say!("error: {e}");
             return exit::UNAVAILABLE;
         }
-        let ev = eval::evaluate_pets(&data_dir, &model, a.seed).and_then(|mut ev| {
-            ev.rows.extend(eval::evaluate_sim(&model, a.seed)?.rows);
-            Ok((ev, eval::evaluate_detected(&data_dir, &model, a.seed)?))
-        });
-        return match ev {
-            Ok((ev, det)) => print_out(&format!(
+        return match eval::evaluate_held_out(&data_dir, &model, a.seed) {
+            Ok([ev, det]) => print_out(&format!(
                 "{}\n{}\ndetected regions (the detector's own, labelled by the truth):\n{}",
                 ev.table(),
                 ev.det_table(),

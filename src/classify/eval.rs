@@ -274,20 +274,20 @@ pub fn scorer(model: &Model) -> Classifier {
     Classifier::with_model(model.clone(), &cfg)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Scores `boxes` into `evs`: the true boxes into `evs[0]`, the
+/// detector's regions into `evs[1]`.
 fn score_into(
-    ev: &mut Evaluation,
+    evs: &mut [Evaluation; 2],
     cls: &mut Classifier,
     origin: Origin,
     frame: u32,
-    luma: Plane<'_>,
-    mask: Option<&BitMask>,
+    view: (Plane<'_>, Option<&BitMask>),
     boxes: &[Labelled],
-    detected: bool,
 ) {
-    for b in boxes.iter().filter(|b| b.detected == detected) {
+    let (luma, mask) = view;
+    for b in boxes {
         let v = cls.classify_box_masked(luma, mask, &b.bbox);
-        ev.rows.push(Scored {
+        evs[usize::from(b.detected)].rows.push(Scored {
             origin,
             kind: b.kind,
             score: v.score,
@@ -299,73 +299,81 @@ fn score_into(
 
 /// Scores `model` on the held-out PETS frames 600–794 ([`scorer`]).
 pub fn evaluate_pets(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
-    evaluate_pets_regions(data_dir, model, seed, false)
+    let [ev, _] = held_out_pets_pass(data_dir, model, seed, false)?;
+    Ok(ev)
 }
 
 /// Scores `model` on the held-out simulated clips ([`scorer`]).
 pub fn evaluate_sim(model: &Model, seed: u64) -> Result<Evaluation, String> {
-    evaluate_sim_regions(model, seed, false)
-}
-
-/// Scores `model` on the detector's own regions of the held-out PETS
-/// frames and simulated clips, labelled by the truth
-/// ([`samples::detected_labels`]; ambiguous regions left out): what the
-/// loop classifies, rather than jittered true boxes.
-pub fn evaluate_detected(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
-    let mut ev = evaluate_pets_regions(data_dir, model, seed, true)?;
-    ev.rows
-        .extend(evaluate_sim_regions(model, seed, true)?.rows);
+    let [ev, _] = held_out_sim_pass(model, seed, false)?;
     Ok(ev)
 }
 
-fn evaluate_pets_regions(
+/// Scores `model` on the held-out PETS frames and simulated clips, both
+/// on the true boxes ([`evaluate_pets`], [`evaluate_sim`]) and on the
+/// detector's own regions of the same frames, labelled by the truth
+/// ([`samples::detected_labels`]; ambiguous regions left out): what the
+/// loop classifies. One pass over each source for both.
+pub fn evaluate_held_out(
     data_dir: &Path,
     model: &Model,
     seed: u64,
-    detected: bool,
-) -> Result<Evaluation, String> {
-    let mut cls = scorer(model);
-    let mut ev = Evaluation::default();
-    let detection = Detection {
-        mask: model.layout.mask_fill,
-        label: detected,
-    };
-    for_held_out_pets(data_dir, seed, detection, |f, luma, mask, boxes| {
-        score_into(
-            &mut ev,
-            &mut cls,
-            Origin::Pets,
-            f,
-            luma,
-            mask,
-            boxes,
-            detected,
-        )
-    })?;
-    Ok(ev)
+) -> Result<[Evaluation; 2], String> {
+    let [mut boxes, mut regions] = held_out_pets_pass(data_dir, model, seed, true)?;
+    let [sim_boxes, sim_regions] = held_out_sim_pass(model, seed, true)?;
+    boxes.rows.extend(sim_boxes.rows);
+    regions.rows.extend(sim_regions.rows);
+    Ok([boxes, regions])
 }
 
-fn evaluate_sim_regions(model: &Model, seed: u64, detected: bool) -> Result<Evaluation, String> {
-    let mut cls = scorer(model);
-    let mut ev = Evaluation::default();
-    let detection = Detection {
+/// The second half of [`evaluate_held_out`]: the detector's regions only.
+pub fn evaluate_detected(data_dir: &Path, model: &Model, seed: u64) -> Result<Evaluation, String> {
+    let [_, regions] = evaluate_held_out(data_dir, model, seed)?;
+    Ok(regions)
+}
+
+/// What the held-out passes ask of the detector: its mask when the model
+/// reads one, its regions when `regions` is set.
+fn detection(model: &Model, regions: bool) -> Detection {
+    Detection {
         mask: model.layout.mask_fill,
-        label: detected,
-    };
-    for_held_out_sim(seed, detection, |_, f, luma, mask, boxes| {
-        let f = f as u32;
-        score_into(
-            &mut ev,
-            &mut cls,
-            Origin::Sim,
-            f,
-            luma,
-            mask,
-            boxes,
-            detected,
-        )
+        label: regions,
+    }
+}
+
+fn held_out_pets_pass(
+    data_dir: &Path,
+    model: &Model,
+    seed: u64,
+    regions: bool,
+) -> Result<[Evaluation; 2], String> {
+    let mut cls = scorer(model);
+    let mut evs = <[Evaluation; 2]>::default();
+    let d = detection(model, regions);
+    for_held_out_pets(data_dir, seed, d, |f, luma, mask, boxes| {
+        score_into(&mut evs, &mut cls, Origin::Pets, f, (luma, mask), boxes)
     })?;
-    Ok(ev)
+    Ok(evs)
+}
+
+fn held_out_sim_pass(model: &Model, seed: u64, regions: bool) -> Result<[Evaluation; 2], String> {
+    let mut cls = scorer(model);
+    let mut evs = <[Evaluation; 2]>::default();
+    for_held_out_sim(
+        seed,
+        detection(model, regions),
+        |_, f, luma, mask, boxes| {
+            score_into(
+                &mut evs,
+                &mut cls,
+                Origin::Sim,
+                f as u32,
+                (luma, mask),
+                boxes,
+            )
+        },
+    )?;
+    Ok(evs)
 }
 
 #[cfg(test)]

@@ -569,12 +569,12 @@ impl Detection {
 /// The detector over every frame of a clip (default detection settings, as
 /// the loop runs them): its cleaned foreground mask and its regions; does
 /// nothing when off.
-pub struct Masker {
+pub struct ClipDetector {
     detector: Option<(Detector, RegionSet)>,
     label: bool,
 }
 
-impl Masker {
+impl ClipDetector {
     /// A detector for frames of `size` when `use_.on()`.
     pub fn new(use_: Detection, size: Size) -> Self {
         let detector = use_.on().then(|| {
@@ -582,7 +582,7 @@ impl Masker {
             let regions = RegionSet::with_capacity(cfg.region_capacity(), cfg.run_capacity(size));
             (Detector::new(&cfg, size), regions)
         });
-        Masker {
+        ClipDetector {
             detector,
             label: use_.label,
         }
@@ -689,14 +689,19 @@ pub mod sim {
         o.bbox.map(f64::from)
     }
 
+    /// The label kind of a car or dog; `None` for a person.
+    fn animal_kind(o: &ObjectTruth) -> Option<Kind> {
+        match o.kind {
+            SimKind::Person => None,
+            SimKind::Car => Some(Kind::Car),
+            SimKind::Dog => Some(Kind::Dog),
+        }
+    }
+
     /// A car or dog at least half visible as a jittered negative of its
     /// kind; `None` for people and mostly hidden objects.
     fn animal_sample(o: &ObjectTruth, rng: &mut Rng, w: usize, h: usize) -> Option<Labelled> {
-        let kind = match o.kind {
-            SimKind::Person => return None,
-            SimKind::Car => Kind::Car,
-            SimKind::Dog => Kind::Dog,
-        };
+        let kind = animal_kind(o)?;
         if o.visible_fraction < 0.5 {
             return None;
         }
@@ -713,16 +718,17 @@ pub mod sim {
     /// only the cars and dogs (at least half visible) as samples: more
     /// animals and vehicles for training, without rendering the frames
     /// that have none (the cast's frame ranges come from the geometry).
+    /// With `masks`, every frame is rendered for the detector and `each`
+    /// gets its mask (these frames have no people to label regions by).
     pub fn for_animal_frames(
         name: &str,
         seed: u64,
         stride: u64,
         rng: &mut Rng,
-        detection: Detection,
+        masks: bool,
         mut each: impl FnMut(u64, Plane<'_>, Option<&BitMask>, &[Labelled]),
     ) -> Result<(), String> {
         let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
-        let masks = detection.on();
         let spans: Vec<(u64, u64)> = src
             .cast()
             .iter()
@@ -731,7 +737,11 @@ pub mod sim {
             .collect();
         let size = crate::source::FrameSource::info(&src).size;
         let mut frame = Frame::new(size);
-        let mut masker = Masker::new(detection, size);
+        let only_mask = Detection {
+            mask: masks,
+            label: false,
+        };
+        let mut detector = ClipDetector::new(only_mask, size);
         let mut out = Vec::new();
         let (mut k, mut next) = (0, 0);
         while k < src.frames() {
@@ -741,13 +751,13 @@ pub mod sim {
                 continue;
             }
             src.render(k, &mut frame);
-            masker.update(&frame);
+            detector.update(&frame);
             if wanted {
                 out.clear();
                 for o in src.truth() {
                     out.extend(animal_sample(o, rng, size.width, size.height));
                 }
-                each(k, frame.luma(), masker.mask(), &out);
+                each(k, frame.luma(), detector.mask(), &out);
                 next = k + stride;
             }
             k += 1;
@@ -769,15 +779,14 @@ pub mod sim {
         let mut src = SimSource::open(name, &format!("seed={seed}")).map_err(|e| e.to_string())?;
         let size = crate::source::FrameSource::info(&src).size;
         let mut frame = Frame::new(size);
-        let masks = detection.on();
-        let mut masker = Masker::new(detection, size);
+        // The detector needs every frame; without it only sampled ones render.
+        let step = if detection.on() { 1 } else { stride };
+        let mut detector = ClipDetector::new(detection, size);
         let mut out = Vec::new();
-        let mut k = 0;
-        while k < src.frames() {
+        for k in (0..src.frames()).step_by(step as usize) {
             src.render(k, &mut frame);
-            masker.update(&frame);
+            detector.update(&frame);
             if k % stride != 0 {
-                k += 1;
                 continue;
             }
             let mut people = Vec::new();
@@ -791,12 +800,7 @@ pub mod sim {
                     hidden.push(o.visible_fraction < 0.85);
                 } else {
                     others.push(truth_box(o));
-                    let kind = if o.kind == SimKind::Car {
-                        Kind::Car
-                    } else {
-                        Kind::Dog
-                    };
-                    animals.push((kind, truth_box(o)));
+                    animals.extend(animal_kind(o).map(|k| (k, truth_box(o))));
                     out.extend(animal_sample(o, rng, size.width, size.height));
                 }
             }
@@ -811,10 +815,9 @@ pub mod sim {
                 &mut out,
             );
             let (w, h) = (size.width, size.height);
-            let regions = masker.labelled_regions();
+            let regions = detector.labelled_regions();
             detected_labels(regions, &people, &hidden, &animals, w, h, &mut out);
-            each(k, frame.luma(), masker.mask(), &out);
-            k += if masks { 1 } else { stride };
+            each(k, frame.luma(), detector.mask(), &out);
         }
         Ok(())
     }
@@ -831,7 +834,7 @@ pub mod sim {
                 1,
                 5,
                 &mut Rng::new(1),
-                Detection::default(),
+                false,
                 |_, luma, _, boxes| {
                     frames += 1;
                     assert_eq!((luma.width, luma.height), (640, 480));

@@ -24,7 +24,7 @@
 //! 7. Quantise to i8, write the blob, report (with the held-out evaluation
 //!    of [`super::eval`] when asked).
 
-use super::eval::{evaluate_detected, evaluate_pets, evaluate_sim, Evaluation};
+use super::eval::{evaluate_held_out, Evaluation};
 use super::layout::{Layout, BLOCK_DIM, LBP_BINS};
 use super::samples::{self, Detection, Kind, Labelled, Origin, PerFrame, Rng};
 use super::solver::{accuracy, cross_validate, solve, Data, KindWeights, Linear};
@@ -130,17 +130,17 @@ pub const C_GRID: [f64; 4] = [0.01, 0.03, 0.1, 0.3];
 
 /// Calls `each(frame_index, luma, detector)` for PETS frames
 /// `first..=last`; with `detection` on, the detector has run on every frame
-/// from 0 (see [`samples::Masker`]).
+/// from 0 (see [`samples::ClipDetector`]).
 pub fn for_pets_frames(
     data_dir: &Path,
     first: u32,
     last: u32,
     detection: Detection,
-    mut each: impl FnMut(u32, Plane<'_>, &samples::Masker),
+    mut each: impl FnMut(u32, Plane<'_>, &samples::ClipDetector),
 ) -> Result<(), String> {
     let mut src = dataset::pets_video(data_dir).map_err(|e| e.to_string())?;
     let mut frame = Frame::new(src.info().size);
-    let mut masker = samples::Masker::new(detection, src.info().size);
+    let mut detector = samples::ClipDetector::new(detection, src.info().size);
     let mut k = 0u32;
     while k <= last {
         match src.next_frame(&mut frame).map_err(|e| e.to_string())? {
@@ -148,9 +148,9 @@ pub fn for_pets_frames(
             Next::Waiting => continue,
             Next::End => break,
         }
-        masker.update(&frame);
+        detector.update(&frame);
         if k >= first {
-            each(k, frame.luma(), &masker);
+            each(k, frame.luma(), &detector);
         }
         k += 1;
     }
@@ -271,7 +271,7 @@ fn base_set(o: &TrainOptions, ex: &mut Extractor, log: &mut String) -> Result<Da
                 seed,
                 SIM_STRIDE / 2,
                 &mut rng,
-                masks,
+                masks.mask,
                 |_, luma, mask, boxes| {
                     for s in boxes {
                         let fold = (k % 5) as u8;
@@ -570,8 +570,7 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
     let _ = writeln!(log, "training time {:.1} s", t0.elapsed().as_secs_f64());
     if o.eval {
         log::info!("held-out evaluation");
-        let mut ev = evaluate_pets(&o.data_dir, &model, o.seed)?;
-        ev.rows.extend(evaluate_sim(&model, o.seed)?.rows);
+        let [ev, det] = evaluate_held_out(&o.data_dir, &model, o.seed)?;
         let _ = writeln!(
             log,
             "\n## Held-out evaluation (PETS frames 600-794, sim seeds {SIM_EVAL_SEEDS:?})\n"
@@ -579,7 +578,6 @@ pub fn train(o: &TrainOptions) -> Result<(Model, String), String> {
         log.push_str(&ev.table());
         log.push('\n');
         log.push_str(&ev.det_table());
-        let det = evaluate_detected(&o.data_dir, &model, o.seed)?;
         let _ = writeln!(
             log,
             "\n## Held-out detected regions (the detector's own regions of the same frames, labelled by the truth)\n"

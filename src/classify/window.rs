@@ -109,24 +109,21 @@ pub fn mask_features(
         let c = start + (2 * i + 1) * extent / (2 * n);
         (c + (1 << 15)) >> 16
     };
-    let (mw, mh) = (mask.width() as i64, mask.height() as i64);
-    // Source column of each window column, or none off the mask (the
-    // window is at most MAX_WINDOW_SIDE wide).
-    let mut columns = [None::<usize>; MAX_WINDOW_SIDE as usize];
+    // Source column of each window column (the window is at most
+    // MAX_WINDOW_SIDE wide); negative ones clamp to usize::MAX, which
+    // `BitMask::get` reads as background like any column off the mask.
+    let mut columns = [0usize; MAX_WINDOW_SIDE as usize];
     for (i, c) in columns.iter_mut().enumerate().take(ww as usize) {
         let x = source(rect.left, rect.width, ww, i as i64);
-        *c = (0..mw).contains(&x).then_some(x as usize);
+        *c = usize::try_from(x).unwrap_or(usize::MAX);
     }
     for j in 0..wh {
-        let y = source(rect.top, rect.height, wh, j);
-        if !(0..mh).contains(&y) {
+        let Ok(y) = usize::try_from(source(rect.top, rect.height, wh, j)) else {
             continue;
-        }
-        let row = mask.row(y as usize);
+        };
         let cell_row = j as usize / MASK_CELL * cx;
-        for (i, c) in columns.iter().enumerate().take(ww as usize) {
-            let Some(x) = *c else { continue };
-            if row[x / 64] >> (x % 64) & 1 == 0 {
+        for (i, &x) in columns.iter().enumerate().take(ww as usize) {
+            if !mask.get(x, y) {
                 continue;
             }
             let col = if flip { ww as usize - 1 - i } else { i };
